@@ -1,0 +1,86 @@
+"""Selects the Dr.Jit/Mitsuba backend before either is imported.
+
+Dr.Jit's LLVM backend loads libLLVM at run time. Debian's LLVM 15 makes it abort the whole process
+("Cannot select ... fmaximum") and LLVM 14 is refused, so we pick a recent library ourselves and
+fail with an instruction instead of an abort. Import `dr` and `mi` from here, never directly.
+"""
+from __future__ import annotations
+
+import glob
+import os
+import re
+import sys
+
+MIN_LLVM = 16  # 15 aborts (measured); 19 is what Debian 12 backports ship and is tested.
+
+_SEARCH = (
+    "/usr/lib/x86_64-linux-gnu/libLLVM*.so*",
+    "/usr/lib/aarch64-linux-gnu/libLLVM*.so*",
+    "/usr/lib/llvm-*/lib/libLLVM*.so*",
+    "/usr/lib64/libLLVM*.so*",
+    "/usr/local/lib/libLLVM*.so*",
+)
+
+
+class BackendError(RuntimeError):
+    pass
+
+
+def _llvm_major(path: str) -> int | None:
+    m = re.search(r"libLLVM[-.]?(\d+)", os.path.basename(path)) or re.search(r"llvm-(\d+)", path)
+    return int(m.group(1)) if m else None
+
+
+def find_libllvm() -> str:
+    """Path of the newest libLLVM >= MIN_LLVM on this machine, or BackendError saying what to install."""
+    found = []
+    for pattern in _SEARCH:
+        for path in glob.glob(pattern):
+            major = _llvm_major(path)
+            if major is not None and os.path.isfile(path):
+                found.append((major, path))
+    good = sorted((m, p) for m, p in found if m >= MIN_LLVM)
+    if not good:
+        seen = ", ".join(sorted({p for _, p in found})) or "none"
+        raise BackendError(
+            f"Dr.Jit's LLVM backend needs libLLVM >= {MIN_LLVM} (LLVM 15 aborts the process, 14 is "
+            f"refused); found: {seen}. Install one with `apt-get install libllvm19` "
+            "or set DRJIT_LIBLLVM_PATH to a suitable libLLVM.so.")
+    return good[-1][1]
+
+
+def requested_variant() -> str:
+    return os.environ.get("TAA_VARIANT", "llvm_ad_rgb")
+
+
+def _configure() -> None:
+    variant = requested_variant()
+    if not variant.startswith("llvm"):
+        return
+    path = os.environ.get("DRJIT_LIBLLVM_PATH")
+    if path:
+        major = _llvm_major(path)
+        if not os.path.isfile(path):
+            raise BackendError(f"DRJIT_LIBLLVM_PATH={path!r} does not exist")
+        if major is not None and major < MIN_LLVM:
+            raise BackendError(f"DRJIT_LIBLLVM_PATH={path!r} is LLVM {major}; "
+                               f"Dr.Jit needs >= {MIN_LLVM} (apt-get install libllvm19)")
+        return
+    if "drjit" in sys.modules:
+        raise BackendError("drjit was imported before backend could select libLLVM; "
+                           "import backend first or set DRJIT_LIBLLVM_PATH")
+    os.environ["DRJIT_LIBLLVM_PATH"] = find_libllvm()
+
+
+_configure()
+
+import drjit as dr  # noqa: E402
+import mitsuba as mi  # noqa: E402
+
+VARIANT = requested_variant()
+try:
+    mi.set_variant(VARIANT)
+except Exception as exc:  # an unknown or unavailable variant (cuda without a GPU)
+    raise BackendError(f"Mitsuba variant {VARIANT!r} is not available here: {exc}") from exc
+
+__all__ = ["dr", "mi", "VARIANT", "BackendError", "find_libllvm"]

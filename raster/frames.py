@@ -1,0 +1,180 @@
+"""Per-frame buffers from the visibility pass: each pixel's one sample is rebuilt exactly
+(ray-triangle intersection with the triangle the rasteriser found) and shaded by shading.shade,
+the function the reference uses. Only the buffers asked for are computed.
+
+Buffers (row-major (H, W, ...), origin top-left):
+  color      float32 (H,W,3) linear HDR, the jittered sample
+  albedo     float32 (H,W,3) unlit albedo (background colour where nothing is hit)
+  depth      float32 (H,W)   linear view depth, world units (camera far plane for background)
+  object_id  int32   (H,W)   1-based object index, 0 = background
+  prim_id    int32   (H,W)   triangle index within the object, -1 = background
+  normal     float32 (H,W,3) world shading normal facing the viewer (0 for background)
+  motion     float32 (H,W,2) pixels, current minus previous image position of the same surface
+             point, jitter excluded; exact for camera motion and moving/rotating objects
+  prev_depth float32 (H,W)   linear depth of the same surface point in the previous frame's camera
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from backend import dr, mi
+from scenes import ResolvedScene
+from scenes.camera import CameraState
+from shading import Surface, albedo_at, frame_geometry, shade
+
+from .visibility import RasterError, VisibilityPass
+
+BUFFERS = ("color", "albedo", "depth", "object_id", "prim_id", "normal", "motion", "prev_depth")
+
+
+def _vec(m: np.ndarray, col: int) -> mi.Vector3f:
+    return mi.Vector3f(*(float(c) for c in m[:3, col]))
+
+
+def image_position(cam: CameraState, p: mi.Point3f):
+    """Unjittered image position (x right, y down, pixels) and view depth of world points."""
+    d = p - _vec(cam.to_world, 3)
+    x, y, z = (dr.dot(d, _vec(cam.to_world, k)) for k in range(3))
+    depth = -z
+    tx, ty = cam.tan_half
+    return mi.Point2f((x / depth / tx + 1) * 0.5 * cam.width, (1 - y / depth / ty) * 0.5 * cam.height), depth
+
+
+def _direction_position(cam: CameraState, d: mi.Vector3f) -> mi.Point2f:
+    """Image position of a direction (a point at infinity): background motion is rotation only."""
+    x, y, z = (dr.dot(d, _vec(cam.to_world, k)) for k in range(3))
+    tx, ty = cam.tan_half
+    return mi.Point2f((x / -z / tx + 1) * 0.5 * cam.width, (1 - y / -z / ty) * 0.5 * cam.height)
+
+
+@dataclass
+class _Hit:
+    valid: mi.Bool
+    face: mi.UInt32
+    b1: mi.Float
+    b2: mi.Float
+    idx: tuple  # vertex indices i0, i1, i2
+
+
+def _gather3(arr: mi.Float, i) -> mi.Vector3f:
+    return dr.gather(mi.Vector3f, arr, i)
+
+
+class Rasterizer:
+    """Renders frames of one scene at one resolution; holds the GL context."""
+
+    def __init__(self, scene: ResolvedScene, width: int, height: int):
+        self.scene, self.width, self.height = scene, width, height
+        self.vis = VisibilityPass(width, height)
+        self._geo_cache: tuple | None = None
+        self._static = all(scene.is_static(i) for i in range(len(scene.meshes)))
+
+    @property
+    def samples_per_pixel(self) -> int:
+        return self.vis.samples_per_pixel
+
+    def geometry(self, t: int):
+        key = 0 if self._static else t
+        if self._geo_cache is None or self._geo_cache[0] != key:
+            self._geo_cache = (key, frame_geometry(self.scene, t))
+        return self._geo_cache[1]
+
+    def _prev_positions(self, t: int) -> mi.Float:
+        return mi.Float(np.concatenate([self.scene.world_vertices(i, t - 1).astype(np.float32)
+                                        for i in range(len(self.scene.meshes))]).ravel())
+
+    def render(self, t: int, jitter=(0.0, 0.0), buffers=("color",)) -> dict[str, np.ndarray]:
+        unknown = set(buffers) - set(BUFFERS)
+        if unknown:
+            raise RasterError(f"unknown buffer(s) {sorted(unknown)}; available: {BUFFERS}")
+        W, H = self.width, self.height
+        cam = self.scene.camera(t, W, H)
+        obj_np, prim_np = self.vis.render(self.scene, t, cam.view(), cam.projection(jitter))
+        geo = self.geometry(t)
+        n_obj = geo.n_objects
+        if obj_np.max() > n_obj:
+            raise RasterError(f"visibility pass returned object id {obj_np.max()} > {n_obj}")
+
+        # Camera ray through each pixel's jittered sample.
+        idx = dr.arange(mi.UInt32, W * H)
+        sx = mi.Float(idx % W) + 0.5 + float(jitter[0])
+        sy = mi.Float(idx // W) + 0.5 + float(jitter[1])
+        tx, ty = cam.tan_half
+        d_cam = ((2 * sx / W - 1) * tx, (1 - 2 * sy / H) * ty)
+        ray_d = _vec(cam.to_world, 0) * d_cam[0] + _vec(cam.to_world, 1) * d_cam[1] - _vec(cam.to_world, 2)
+        eye = cam.position
+        ray_o = mi.Point3f(*(float(c) for c in eye))
+
+        obj = mi.UInt32(obj_np.ravel())
+        valid = obj > 0
+        face_off = mi.UInt32(geo.face_offset.astype(np.uint32))
+        face = dr.gather(mi.UInt32, face_off, dr.maximum(obj, 1) - 1, valid) + mi.UInt32(prim_np.ravel())
+        i0, i1, i2 = (dr.gather(mi.UInt32, geo.faces, face * 3 + k, valid) for k in range(3))
+        v0, v1, v2 = (_gather3(geo.positions, i) for i in (i0, i1, i2))
+
+        # Moller-Trumbore: barycentrics of the sample on the rasterised triangle.
+        e1, e2 = v1 - v0, v2 - v0
+        pvec = dr.cross(ray_d, e2)
+        det = dr.dot(e1, pvec)
+        ok = valid & (dr.abs(det) > 1e-20)
+        inv = dr.select(ok, dr.rcp(det), 0.0)
+        tvec = ray_o - v0
+        b1 = dr.select(ok, dr.dot(tvec, pvec) * inv, 1 / 3)
+        qvec = dr.cross(tvec, e1)
+        b2 = dr.select(ok, dr.dot(ray_d, qvec) * inv, 1 / 3)
+        b0 = 1 - b1 - b2
+        p = v0 * b0 + v1 * b1 + v2 * b2
+        n_geo = dr.normalize(dr.cross(e1, e2))
+        smooth = dr.gather(mi.Bool, geo.obj_smooth, obj, valid)
+        n_interp = dr.normalize(_gather3(geo.vnormals, i0) * b0 + _gather3(geo.vnormals, i1) * b1
+                                + _gather3(geo.vnormals, i2) * b2)
+        n_sh = dr.select(smooth, n_interp, n_geo)
+        uv = (dr.gather(mi.Point2f, geo.uvs, i0, valid) * b0 + dr.gather(mi.Point2f, geo.uvs, i1, valid) * b1
+              + dr.gather(mi.Point2f, geo.uvs, i2, valid) * b2)
+        surf = Surface(obj=obj, p=p, n_geo=n_geo, n_sh=n_sh, uv=uv)
+
+        out: dict[str, np.ndarray] = {}
+
+        def img(x, c):
+            a = np.asarray(x, dtype=np.float32) if c == 1 else np.stack([np.asarray(x[k]) for k in range(c)], -1)
+            return a.reshape(H, W, c) if c > 1 else a.reshape(H, W)
+
+        if "color" in buffers:
+            out["color"] = img(shade(geo, surf, eye, valid), 3)
+        if "albedo" in buffers:
+            bg = mi.Color3f(*self.scene.desc.background)
+            out["albedo"] = img(dr.select(valid, albedo_at(geo, obj, uv, valid), bg), 3)
+        if "depth" in buffers or "motion" in buffers:
+            pos_cur, depth = image_position(cam, p)
+        if "depth" in buffers:
+            out["depth"] = img(dr.select(valid, depth, cam.far), 1)
+        if "object_id" in buffers:
+            out["object_id"] = obj_np.astype(np.int32)
+        if "prim_id" in buffers:
+            out["prim_id"] = np.where(obj_np > 0, prim_np.astype(np.int64), -1).astype(np.int32)
+        if "normal" in buffers:
+            facing = dr.select(dr.dot(n_geo, p - ray_o) > 0, -n_sh, n_sh)
+            out["normal"] = img(dr.select(valid, facing, 0.0), 3)
+        if "motion" in buffers or "prev_depth" in buffers:
+            prev_cam = self.scene.camera(t - 1, W, H)
+            pp = self._prev_positions(t)
+            p_prev = _gather3(pp, i0) * b0 + _gather3(pp, i1) * b1 + _gather3(pp, i2) * b2
+            pos_prev, depth_prev = image_position(prev_cam, p_prev)
+            if "motion" in buffers:
+                bg_now = _direction_position(cam, ray_d)
+                bg_prev = _direction_position(prev_cam, ray_d)
+                mv = dr.select(valid, pos_cur - pos_prev, bg_now - bg_prev)
+                out["motion"] = img(mv, 2)
+            if "prev_depth" in buffers:
+                out["prev_depth"] = img(dr.select(valid, depth_prev, prev_cam.far), 1)
+        for name, a in out.items():
+            if a.dtype.kind == "f" and not np.all(np.isfinite(a)):
+                bad = int(np.count_nonzero(~np.isfinite(a)))
+                raise RasterError(f"scene {self.scene.name!r} frame {t}: buffer {name!r} has "
+                                  f"{bad} NaN/Inf values")
+        return out
+
+    def close(self):
+        self.vis.close()

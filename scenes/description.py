@@ -1,0 +1,190 @@
+"""Declarative scene description: validated the same way from Python, TOML or JSON.
+
+Units: world units for lengths, degrees for angles, linear Rec.709 RGB for colours. Animation is
+per frame (frame index t = 0, 1, ...): an object's pose at t is its base transform followed by
+`velocity * t` and a rotation of `spin_deg * t` about `spin_axis` through its own origin.
+"""
+from __future__ import annotations
+
+from typing import Annotated, Literal, Optional, Union
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+Vec3 = tuple[float, float, float]
+RGB = tuple[Annotated[float, Field(ge=0)], Annotated[float, Field(ge=0)], Annotated[float, Field(ge=0)]]
+
+TRANSPORTS = ("unlit", "direct", "direct_shadows", "path")
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, arbitrary_types_allowed=True)
+
+
+class CameraCut(_Strict):
+    frame: int = Field(ge=0)
+    position: Vec3
+    target: Vec3
+
+
+class Camera(_Strict):
+    position: Vec3
+    target: Vec3
+    up: Vec3 = (0.0, 1.0, 0.0)
+    yfov_deg: float = Field(45.0, gt=0, lt=180)
+    near: float = Field(0.1, gt=0)
+    far: float = Field(100.0, gt=0)
+    velocity: Vec3 = (0.0, 0.0, 0.0)          # position change per frame
+    target_velocity: Vec3 = (0.0, 0.0, 0.0)
+    cuts: tuple[CameraCut, ...] = ()          # hard cuts: the pose jumps, history must reset
+
+    @model_validator(mode="after")
+    def _check(self):
+        if self.far <= self.near:
+            raise ValueError(f"far ({self.far}) must be greater than near ({self.near})")
+        if np.allclose(np.subtract(self.position, self.target), 0):
+            raise ValueError("position and target coincide")
+        return self
+
+
+class Texture(_Strict):
+    """An image addressed by UV in [0,1)^2 with wrap-around; row 0 is v in [0, 1/H)."""
+    kind: Literal["image", "checker", "array"]
+    path: Optional[str] = None            # image: PNG/JPEG, sRGB-encoded, converted to linear
+    squares: int = Field(8, ge=1)         # checker
+    color_a: RGB = (1.0, 1.0, 1.0)
+    color_b: RGB = (0.0, 0.0, 0.0)
+    data: Optional[np.ndarray] = Field(None, exclude=True)  # array: (H, W, 3) or (H, W) float32, linear
+
+    @model_validator(mode="after")
+    def _check(self):
+        if self.kind == "image" and not self.path:
+            raise ValueError("kind 'image' needs a 'path'")
+        if self.kind == "array":
+            if self.data is None or self.data.ndim not in (2, 3):
+                raise ValueError("kind 'array' needs 'data' of shape (H, W) or (H, W, 3)")
+            if not np.all(np.isfinite(self.data)):
+                raise ValueError("texture data contains NaN or Inf")
+        return self
+
+
+class Material(_Strict):
+    albedo: RGB = (0.8, 0.8, 0.8)
+    texture: Optional[Texture] = None     # multiplies albedo
+    alpha: Optional[Texture] = None       # cut-out: a sample is kept where alpha >= alpha_threshold
+    alpha_threshold: float = Field(0.5, gt=0, le=1)
+
+
+class MeshSpec(_Strict):
+    kind: Literal["box", "plane", "sphere", "cylinder", "file", "arrays"]
+    size: Vec3 = (1.0, 1.0, 1.0)          # box extents; plane uses x, y; cylinder radius=x, height=y
+    radius: float = Field(0.5, gt=0)      # sphere
+    segments: int = Field(32, ge=3)       # sphere / cylinder tessellation
+    uv_scale: tuple[float, float] = (1.0, 1.0)
+    smooth: bool = False                  # interpolated vertex normals (sphere, cylinder, files)
+    path: Optional[str] = None            # file: OBJ / PLY / glTF
+    # arrays: built in code; vertices (V,3), faces (F,3), optional uvs (V,2), normals (V,3)
+    vertices: Optional[np.ndarray] = Field(None, exclude=True)
+    faces: Optional[np.ndarray] = Field(None, exclude=True)
+    uvs: Optional[np.ndarray] = Field(None, exclude=True)
+    normals: Optional[np.ndarray] = Field(None, exclude=True)
+
+    @model_validator(mode="after")
+    def _check(self):
+        if self.kind == "file" and not self.path:
+            raise ValueError("kind 'file' needs a 'path'")
+        if self.kind == "arrays" and (self.vertices is None or self.faces is None):
+            raise ValueError("kind 'arrays' needs 'vertices' and 'faces'")
+        return self
+
+
+class Transform(_Strict):
+    translate: Vec3 = (0.0, 0.0, 0.0)
+    rotate_axis: Vec3 = (0.0, 1.0, 0.0)
+    rotate_deg: float = 0.0
+    scale: Vec3 = (1.0, 1.0, 1.0)
+
+
+class Motion(_Strict):
+    velocity: Vec3 = (0.0, 0.0, 0.0)      # world units per frame
+    spin_axis: Vec3 = (0.0, 1.0, 0.0)
+    spin_deg: float = 0.0                 # degrees per frame about the object's origin
+
+
+class SceneObject(_Strict):
+    name: str
+    mesh: MeshSpec
+    material: Material = Material()
+    transform: Transform = Transform()
+    motion: Motion = Motion()
+
+
+class DirectionalLight(_Strict):
+    type: Literal["directional"] = "directional"
+    direction: Vec3                       # direction the light travels
+    intensity: RGB = (1.0, 1.0, 1.0)
+
+
+class PointLight(_Strict):
+    type: Literal["point"] = "point"
+    position: Vec3
+    intensity: RGB = (1.0, 1.0, 1.0)      # irradiance at distance 1 (falls off as 1/d^2)
+
+
+Light = Annotated[Union[DirectionalLight, PointLight], Field(discriminator="type")]
+
+
+class Resolution(_Strict):
+    quick: tuple[Annotated[int, Field(ge=8)], Annotated[int, Field(ge=8)]] = (320, 180)
+    full: tuple[Annotated[int, Field(ge=8)], Annotated[int, Field(ge=8)]] = (1600, 900)
+
+
+class Scene(_Strict):
+    name: str
+    description: str = ""
+    stresses: str = ""                    # what the scene is meant to stress
+    transport: Literal[TRANSPORTS] = "direct"
+    frames: int = Field(1, ge=1)
+    resolution: Resolution = Resolution()
+    camera: Camera
+    objects: tuple[SceneObject, ...]
+    lights: tuple[Light, ...] = ()
+    ambient: RGB = (0.0, 0.0, 0.0)
+    background: RGB = (0.0, 0.0, 0.0)
+
+    @field_validator("objects")
+    @classmethod
+    def _objects(cls, v):
+        if not v:
+            raise ValueError("a scene needs at least one object")
+        names = [o.name for o in v]
+        dup = {n for n in names if names.count(n) > 1}
+        if dup:
+            raise ValueError(f"duplicate object names: {sorted(dup)}")
+        if len(v) > 65534:
+            raise ValueError("at most 65534 objects")
+        return v
+
+    @model_validator(mode="after")
+    def _check(self):
+        if self.transport != "unlit" and not self.lights and not any(self.ambient):
+            raise ValueError(f"transport {self.transport!r} needs lights or an ambient term")
+        return self
+
+    def features(self) -> list[str]:
+        """What the scene exercises, for listings and for choosing agreement scenes."""
+        f = [self.transport]
+        if any(o.material.texture is not None for o in self.objects):
+            f.append("texture")
+        if any(o.material.alpha is not None for o in self.objects):
+            f.append("alpha_cutout")
+        if self.transport in ("direct_shadows", "path"):
+            f.append("shadows")
+        if any(any(o.motion.velocity) or o.motion.spin_deg for o in self.objects):
+            f.append("moving_object")
+        c = self.camera
+        if any(c.velocity) or any(c.target_velocity):
+            f.append("moving_camera")
+        if c.cuts:
+            f.append("camera_cut")
+        return f

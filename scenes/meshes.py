@@ -1,0 +1,127 @@
+"""Triangle meshes: built in code or loaded from OBJ/PLY/glTF. Vertices are duplicated per face
+where UVs or normals are discontinuous, so every attribute is per vertex."""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from .description import MeshSpec
+
+
+class SceneError(ValueError):
+    """A scene description or one of its assets is invalid; the message names the culprit."""
+
+
+@dataclass(frozen=True)
+class MeshData:
+    vertices: np.ndarray            # (V, 3) float64, object space
+    faces: np.ndarray               # (F, 3) int64
+    uvs: np.ndarray | None = None   # (V, 2)
+    normals: np.ndarray | None = None  # (V, 3) for smooth shading; None = flat (face normals)
+
+    def validate(self, where: str) -> "MeshData":
+        v, f = self.vertices, self.faces
+        if v.ndim != 2 or v.shape[1] != 3 or len(v) == 0:
+            raise SceneError(f"{where}: vertices must have shape (V, 3), got {v.shape}")
+        if f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
+            raise SceneError(f"{where}: faces must have shape (F, 3), got {f.shape}")
+        if not np.all(np.isfinite(v)):
+            raise SceneError(f"{where}: vertices contain NaN or Inf")
+        if f.min() < 0 or f.max() >= len(v):
+            raise SceneError(f"{where}: face index out of range [0, {len(v)})")
+        for name, a, k in (("uvs", self.uvs, 2), ("normals", self.normals, 3)):
+            if a is not None and (a.shape != (len(v), k) or not np.all(np.isfinite(a))):
+                raise SceneError(f"{where}: {name} must be finite with shape ({len(v)}, {k})")
+        return self
+
+
+def quad(size=(1.0, 1.0), uv_scale=(1.0, 1.0)) -> MeshData:
+    """A plane in x-y facing +z, centred at the origin."""
+    sx, sy = size[0] / 2, size[1] / 2
+    v = np.array([[-sx, -sy, 0], [sx, -sy, 0], [sx, sy, 0], [-sx, sy, 0]], float)
+    uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float) * uv_scale
+    return MeshData(v, np.array([[0, 1, 2], [0, 2, 3]]), uv)
+
+
+def box(size=(1.0, 1.0, 1.0), uv_scale=(1.0, 1.0)) -> MeshData:
+    half = np.asarray(size, float) / 2
+    verts, faces, uvs = [], [], []
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            n = np.zeros(3); n[axis] = sign
+            u = np.zeros(3); u[(axis + 1) % 3] = 1.0
+            w = np.cross(n, u)
+            base = len(verts)
+            for cu, cw in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
+                verts.append((n + cu * u + cw * w) * half)
+                uvs.append(((cu + 1) / 2 * uv_scale[0], (cw + 1) / 2 * uv_scale[1]))
+            faces += [[base, base + 1, base + 2], [base, base + 2, base + 3]]
+    return MeshData(np.array(verts), np.array(faces), np.array(uvs))
+
+
+def sphere(radius=0.5, segments=32, smooth=True, uv_scale=(1.0, 1.0)) -> MeshData:
+    rings, sectors = segments // 2 + 1, segments + 1
+    th = np.linspace(0, np.pi, rings)[:, None]
+    ph = np.linspace(0, 2 * np.pi, sectors)[None, :]
+    n = np.stack([np.sin(th) * np.cos(ph), np.cos(th) * np.ones_like(ph), np.sin(th) * np.sin(ph)], -1)
+    n = n.reshape(-1, 3)
+    uv = np.stack(np.meshgrid(np.linspace(0, 1, sectors), np.linspace(1, 0, rings)), -1).reshape(-1, 2)
+    faces = []
+    for r in range(rings - 1):
+        for s in range(sectors - 1):
+            a, b = r * sectors + s, (r + 1) * sectors + s
+            if r > 0:
+                faces.append([a, a + 1, b])
+            if r < rings - 2:
+                faces.append([a + 1, b + 1, b])
+    return MeshData(n * radius, np.array(faces), uv * uv_scale, n if smooth else None)
+
+
+def cylinder(radius=0.5, height=1.0, segments=32, smooth=True, uv_scale=(1.0, 1.0)) -> MeshData:
+    """An open tube along y (a pipe), centred at the origin."""
+    ph = np.linspace(0, 2 * np.pi, segments + 1)
+    ring = np.stack([np.cos(ph), np.zeros_like(ph), np.sin(ph)], -1)
+    v = np.concatenate([ring * radius + [0, -height / 2, 0], ring * radius + [0, height / 2, 0]])
+    uv = np.concatenate([np.stack([ph / (2 * np.pi), np.zeros_like(ph)], -1),
+                         np.stack([ph / (2 * np.pi), np.ones_like(ph)], -1)]) * uv_scale
+    k = segments + 1
+    faces = [[i, i + 1, k + i + 1] for i in range(segments)] + [[i, k + i + 1, k + i] for i in range(segments)]
+    return MeshData(v, np.array(faces), uv, np.concatenate([ring, ring]) if smooth else None)
+
+
+def load_file(path: str, smooth: bool, base_dir: str | None) -> MeshData:
+    import trimesh
+    full = path if os.path.isabs(path) or base_dir is None else os.path.join(base_dir, path)
+    if not os.path.isfile(full):
+        raise SceneError(f"mesh file not found: {full}")
+    try:
+        loaded = trimesh.load(full, force="mesh", process=False)
+    except Exception as exc:
+        raise SceneError(f"cannot read mesh file {full}: {exc}") from exc
+    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+        raise SceneError(f"mesh file {full} holds no triangles")
+    uv = getattr(loaded.visual, "uv", None)
+    uv = None if uv is None or len(uv) != len(loaded.vertices) else np.asarray(uv, float)
+    normals = np.asarray(loaded.vertex_normals, float) if smooth else None
+    return MeshData(np.asarray(loaded.vertices, float), np.asarray(loaded.faces, np.int64), uv, normals)
+
+
+def build(spec: MeshSpec, where: str, base_dir: str | None = None) -> MeshData:
+    k = spec.kind
+    if k == "box":
+        m = box(spec.size, spec.uv_scale)
+    elif k == "plane":
+        m = quad(spec.size[:2], spec.uv_scale)
+    elif k == "sphere":
+        m = sphere(spec.radius, spec.segments, spec.smooth, spec.uv_scale)
+    elif k == "cylinder":
+        m = cylinder(spec.size[0], spec.size[1], spec.segments, spec.smooth, spec.uv_scale)
+    elif k == "file":
+        m = load_file(spec.path, spec.smooth, base_dir)
+    else:
+        m = MeshData(np.asarray(spec.vertices, float), np.asarray(spec.faces, np.int64),
+                     None if spec.uvs is None else np.asarray(spec.uvs, float),
+                     None if spec.normals is None else np.asarray(spec.normals, float))
+    return m.validate(where)

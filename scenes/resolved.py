@@ -1,0 +1,141 @@
+"""A scene with its assets built: meshes, textures, per-frame poses and a content hash."""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from . import meshes
+from .camera import CameraState, look_at
+from .description import Scene, Texture
+from .meshes import MeshData, SceneError
+
+PROFILES = ("quick", "full")
+
+
+def _rotation(axis, deg) -> np.ndarray:
+    a = np.asarray(axis, float)
+    n = np.linalg.norm(a)
+    if n == 0:
+        if deg:
+            raise SceneError("rotation axis is the zero vector")
+        return np.eye(3)
+    x, y, z = a / n
+    t = np.radians(deg)
+    c, s, C = np.cos(t), np.sin(t), 1 - np.cos(t)
+    return np.array([[c + x * x * C, x * y * C - z * s, x * z * C + y * s],
+                     [y * x * C + z * s, c + y * y * C, y * z * C - x * s],
+                     [z * x * C - y * s, z * y * C + x * s, c + z * z * C]])
+
+
+def build_texture(tex: Texture, where: str, base_dir: str | None) -> np.ndarray:
+    """(H, W, C) float32 linear values."""
+    if tex.kind == "checker":
+        n = tex.squares
+        i, j = np.meshgrid(np.arange(n), np.arange(n))
+        mask = ((i + j) % 2 == 0)[..., None]
+        return np.where(mask, tex.color_a, tex.color_b).astype(np.float32)
+    if tex.kind == "array":
+        d = np.asarray(tex.data, np.float32)
+        return d[..., None] if d.ndim == 2 else d
+    import colour
+    from PIL import Image
+    full = tex.path if os.path.isabs(tex.path) or base_dir is None else os.path.join(base_dir, tex.path)
+    if not os.path.isfile(full):
+        raise SceneError(f"{where}: texture file not found: {full}")
+    try:
+        img = np.asarray(Image.open(full).convert("RGB"), np.float32) / 255.0
+    except Exception as exc:
+        raise SceneError(f"{where}: cannot read texture {full}: {exc}") from exc
+    # Row 0 of our textures is v = 0 (bottom of the image as usually authored).
+    return colour.cctf_decoding(img[::-1], function="sRGB").astype(np.float32)
+
+
+@dataclass
+class ResolvedScene:
+    desc: Scene
+    base_dir: str | None = None
+    meshes: list[MeshData] = field(init=False)
+    textures: list[np.ndarray | None] = field(init=False)   # albedo texture per object
+    alphas: list[np.ndarray | None] = field(init=False)     # alpha texture per object (H, W)
+
+    def __post_init__(self):
+        self.meshes, self.textures, self.alphas = [], [], []
+        for i, obj in enumerate(self.desc.objects):
+            where = f"objects[{i}] ({obj.name!r})"
+            m = meshes.build(obj.mesh, f"{where}.mesh", self.base_dir)
+            mat = obj.material
+            if (mat.texture is not None or mat.alpha is not None) and m.uvs is None:
+                raise SceneError(f"{where}.material: a texture needs UVs but the mesh has none")
+            self.meshes.append(m)
+            self.textures.append(None if mat.texture is None else
+                                 build_texture(mat.texture, f"{where}.material.texture", self.base_dir))
+            alpha = None if mat.alpha is None else \
+                build_texture(mat.alpha, f"{where}.material.alpha", self.base_dir)
+            self.alphas.append(None if alpha is None else alpha.mean(axis=-1))
+
+    @property
+    def name(self) -> str:
+        return self.desc.name
+
+    def resolution(self, profile: str) -> tuple[int, int]:
+        if profile not in PROFILES:
+            raise SceneError(f"unknown profile {profile!r}; choose one of {PROFILES}")
+        return tuple(getattr(self.desc.resolution, profile))
+
+    # -- animation -------------------------------------------------------------------------
+    def object_pose(self, i: int, t: int) -> np.ndarray:
+        """Object-to-world 4x4 at frame t: base scale, rotation, translation, then the motion."""
+        o = self.desc.objects[i]
+        m = np.eye(4)
+        rot = _rotation(o.motion.spin_axis, o.motion.spin_deg * t) @ \
+            _rotation(o.transform.rotate_axis, o.transform.rotate_deg)
+        m[:3, :3] = rot * np.asarray(o.transform.scale, float)
+        m[:3, 3] = np.asarray(o.transform.translate, float) + np.asarray(o.motion.velocity, float) * t
+        return m
+
+    def world_vertices(self, i: int, t: int) -> np.ndarray:
+        m = self.object_pose(i, t)
+        return self.meshes[i].vertices @ m[:3, :3].T + m[:3, 3]
+
+    def world_normals(self, i: int, t: int) -> np.ndarray | None:
+        n = self.meshes[i].normals
+        if n is None:
+            return None
+        w = n @ np.linalg.inv(self.object_pose(i, t)[:3, :3])   # inverse transpose, row vectors
+        return w / np.linalg.norm(w, axis=1, keepdims=True)
+
+    def is_static(self, i: int) -> bool:
+        mo = self.desc.objects[i].motion
+        return not any(mo.velocity) and not mo.spin_deg
+
+    def camera(self, t: int, width: int, height: int) -> CameraState:
+        c = self.desc.camera
+        pos, tgt, t0 = np.asarray(c.position, float), np.asarray(c.target, float), 0
+        for cut in sorted(c.cuts, key=lambda k: k.frame):
+            if cut.frame <= t:
+                pos, tgt, t0 = np.asarray(cut.position, float), np.asarray(cut.target, float), cut.frame
+        dt = t - t0
+        pos = pos + np.asarray(c.velocity, float) * dt
+        tgt = tgt + np.asarray(c.target_velocity, float) * dt
+        return CameraState(look_at(pos, tgt, c.up), c.yfov_deg, c.near, c.far, width, height)
+
+    def is_cut(self, t: int) -> bool:
+        """True where history from frame t-1 must not be used (first frame or a hard cut)."""
+        return t == 0 or any(cut.frame == t for cut in self.desc.camera.cuts)
+
+    # -- identity --------------------------------------------------------------------------
+    @cached_property
+    def content_hash(self) -> str:
+        """Hash of everything that determines the images: description, mesh and texture data."""
+        h = hashlib.sha256(json.dumps(self.desc.model_dump(mode="json"), sort_keys=True).encode())
+        for arrays in (self.meshes, self.textures, self.alphas):
+            for a in arrays:
+                parts = (a.vertices, a.faces, a.uvs, a.normals) if isinstance(a, MeshData) else (a,)
+                for p in parts:
+                    h.update(b"-" if p is None else np.ascontiguousarray(p).tobytes())
+        return h.hexdigest()[:16]

@@ -1,0 +1,130 @@
+"""Surface shading in Dr.Jit, called per pixel by the raster and per sample by the reference.
+
+Light transport (declared by the scene, nothing more is computed):
+  unlit           colour = albedo
+  direct          colour = albedo * (ambient + sum_i E_i * max(0, n . l_i))
+  direct_shadows  as direct, each light term times a visibility ray against the same triangles
+Directional lights give E = intensity; point lights E = intensity / d^2. Surfaces are two-sided:
+normals are turned to face the viewer. Textures use nearest-texel lookup with wrap-around.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from backend import dr, mi
+from scenes.description import DirectionalLight
+
+from .frame import FrameGeometry
+
+MAX_ALPHA_LAYERS = 8   # cut-out surfaces skipped along one ray before giving up (counted as a miss)
+
+
+@dataclass
+class Surface:
+    obj: mi.UInt32         # object id, 0 = background
+    p: mi.Point3f
+    n_geo: mi.Vector3f     # unit geometric normal
+    n_sh: mi.Vector3f      # unit shading normal (interpolated for smooth objects)
+    uv: mi.Point2f
+
+
+def _texel(table: mi.UInt32, data: mi.Float, obj, uv, channels: int, active):
+    """Nearest texel of each object's texture; (has_texture, [channel values])."""
+    off = dr.gather(mi.UInt32, table, obj * 3, active)
+    w = dr.gather(mi.UInt32, table, obj * 3 + 1, active)
+    h = dr.gather(mi.UInt32, table, obj * 3 + 2, active)
+    has = active & (w > 0)
+    fu, fv = uv.x - dr.floor(uv.x), uv.y - dr.floor(uv.y)
+    col = dr.minimum(mi.UInt32(fu * mi.Float(w)), dr.maximum(w, 1) - 1)
+    row = dr.minimum(mi.UInt32(fv * mi.Float(h)), dr.maximum(h, 1) - 1)
+    idx = (off + row * w + col) * channels
+    return has, [dr.gather(mi.Float, data, idx + c, has) for c in range(channels)]
+
+
+def albedo_at(geo: FrameGeometry, obj, uv, active=True) -> mi.Color3f:
+    base = dr.gather(mi.Color3f, geo.obj_albedo, obj, active)
+    has, (r, g, b) = _texel(geo.obj_tex, geo.tex_data, obj, uv, 3, active)
+    return dr.select(has, base * mi.Color3f(r, g, b), base)
+
+
+def alpha_keeps(geo: FrameGeometry, obj, uv, active=True) -> mi.Bool:
+    """True where the surface is opaque (no cut-out texture, or alpha >= its threshold)."""
+    has, (a,) = _texel(geo.obj_alpha, geo.alpha_data, obj, uv, 1, active)
+    thr = dr.gather(mi.Float, geo.obj_alpha_threshold, obj, active)
+    return ~has | (a >= thr)
+
+
+def _object_id(si) -> mi.UInt32:
+    return dr.select(si.is_valid(), mi.UInt32(si.shape.eval_attribute_1("face_objid", si)), 0)
+
+
+def _intersect_opaque(geo: FrameGeometry, ray: mi.Ray3f, active):
+    """Closest intersection that survives the alpha test (cut-out texels are passed through)."""
+    si = geo.mitsuba.ray_intersect(ray, active)
+    if not geo.has_alpha:
+        return si
+    for _ in range(MAX_ALPHA_LAYERS):
+        cut = si.is_valid() & ~alpha_keeps(geo, _object_id(si), si.uv, si.is_valid())
+        if not dr.any(cut):
+            return si
+        nxt = si.spawn_ray(ray.d)
+        nxt.maxt = dr.maximum(ray.maxt - si.t, 0.0)
+        si_next = geo.mitsuba.ray_intersect(nxt, cut)
+        si_next.t += si.t
+        si = dr.select(cut, si_next, si)
+    still = si.is_valid() & ~alpha_keeps(geo, _object_id(si), si.uv, si.is_valid())
+    si.t = dr.select(still, dr.inf, si.t)   # too many layers: treated as a miss
+    return si
+
+
+def trace_visible(geo: FrameGeometry, ray: mi.Ray3f, active=True) -> tuple[Surface, mi.Float]:
+    """The surface a camera ray sees (Mitsuba's BVH), as a Surface, and the hit distance."""
+    si = _intersect_opaque(geo, ray, active)
+    valid = si.is_valid()
+    surf = Surface(obj=dr.select(valid, _object_id(si), 0), p=si.p, n_geo=mi.Vector3f(si.n),
+                   n_sh=mi.Vector3f(si.sh_frame.n), uv=si.uv)
+    return surf, si.t
+
+
+def _occluded(geo: FrameGeometry, origin, direction, dist, active) -> mi.Bool:
+    ray = mi.Ray3f(origin, direction)
+    ray.maxt = dist
+    if not geo.has_alpha:
+        return geo.mitsuba.ray_test(ray, active)
+    return _intersect_opaque(geo, ray, active).is_valid()
+
+
+def shade(geo: FrameGeometry, surf: Surface, eye: np.ndarray, active=True) -> mi.Color3f:
+    """Outgoing radiance towards the camera at `eye` (world position)."""
+    desc = geo.scene.desc
+    hit = mi.Bool(active) & (surf.obj > 0)
+    albedo = albedo_at(geo, surf.obj, surf.uv, hit)
+    if desc.transport == "unlit":
+        colour = albedo
+    else:
+        view = surf.p - mi.Point3f(*(float(c) for c in eye))
+        flip = dr.dot(surf.n_geo, view) > 0
+        n_geo = dr.select(flip, -surf.n_geo, surf.n_geo)
+        n_sh = dr.select(flip, -surf.n_sh, surf.n_sh)
+        irradiance = mi.Color3f(*desc.ambient)
+        shadows = desc.transport == "direct_shadows"
+        origin = surf.p + n_geo * (1e-4 * (1.0 + dr.max(dr.abs(surf.p))))
+        for light in desc.lights:
+            if isinstance(light, DirectionalLight):
+                d = -np.asarray(light.direction, float)
+                l_dir = mi.Vector3f(*(float(c) for c in d / np.linalg.norm(d)))
+                dist, e = mi.Float(dr.inf), mi.Color3f(*light.intensity)
+            else:
+                to_light = mi.Point3f(*light.position) - surf.p
+                dist = dr.norm(to_light)
+                l_dir = to_light / dist
+                e = mi.Color3f(*light.intensity) / dr.square(dist)
+            cos = dr.maximum(dr.dot(n_sh, l_dir), 0.0)
+            lit = hit & (cos > 0)
+            if shadows:
+                lit &= ~_occluded(geo, origin, l_dir, dist * (1 - 1e-4), lit)
+            irradiance += dr.select(lit, e * cos, 0.0)
+        colour = albedo * irradiance
+    return dr.select(hit, colour, mi.Color3f(*desc.background))

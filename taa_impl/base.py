@@ -1,0 +1,158 @@
+"""The `Technique` interface every AA technique implements, and the parameters the TAAs share.
+
+A technique declares the buffers it reads (`needs`), keeps its history explicitly (so a study can
+reset it at a camera cut) and is a pure function of (its parameters, its history, the frame): the
+same inputs give the same output bit for bit. Parameters are a frozen dataclass so a study can hash
+them into a cache key.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+import backend  # noqa: F401  (selects libLLVM and the Mitsuba variant before drjit loads)
+from backend import dr, mi
+
+from . import sanitize
+
+# Feedback presets (k_min, k_max), spec §5 step 5.
+FEEDBACK_PRESETS: dict[str, tuple[float, float]] = {
+    "thesis": (0.925, 0.979),  # the thesis author's implementation
+    "inside": (0.88, 0.97),    # INSIDE (Pedersen 2016)
+}
+
+# Sharpen kernels, spec §5 step 6. Both are [[0,-w,0],[-w,1+4w,-w],[0,-w,0]]; we apply them as
+# out = c + w * sum(c - n) over the 4 cross neighbours n, which is the same sum but keeps a constant
+# image exactly constant (5c - 4c is not exact in float32, c + 0 is).
+SHARPEN_KERNELS: dict[str, tuple[tuple[float, ...], ...]] = {
+    "xu": ((0, -1, 0), (-1, 5, -1), (0, -1, 0)),                      # Xu 2016, "not normalised"
+    "normalised": ((0, -.25, 0), (-.25, 2, -.25), (0, -.25, 0)),     # thesis eq. 4.13
+    "none": ((0, 0, 0), (0, 1, 0), (0, 0, 0)),
+}
+
+
+def sharpen_weight(name: str) -> float:
+    """The w of a cross-shaped, unit-sum kernel [[0,-w,0],[-w,1+4w,-w],[0,-w,0]]."""
+    k = SHARPEN_KERNELS[name]
+    w = -float(k[0][1])
+    assert k[1][1] == 1 + 4 * w and k[0][0] == k[0][2] == k[2][0] == k[2][2] == 0
+    return w
+
+
+@dataclass(frozen=True)
+class TAAParams:
+    """Parameters of the baseline TAA (spec §5). Defaults: thesis feedback preset, Xu's sharpen."""
+    k_min: float = FEEDBACK_PRESETS["thesis"][0]
+    k_max: float = FEEDBACK_PRESETS["thesis"][1]
+    feedback_luma: tuple[float, float, float] = (0.25, 0.5, 0.25)  # INSIDE's (YCoCg Y) weights
+    feedback_floor: float = 0.2      # lower bound of the luminance denominator (INSIDE)
+    clip_eps: float = 1e-8           # INSIDE's FLT_EPS added to the clip box half-size
+    sharpen: str = "xu"
+
+    def __post_init__(self):
+        if not (0.0 <= self.k_min <= self.k_max <= 1.0):
+            raise ValueError(f"need 0 <= k_min <= k_max <= 1, got {self.k_min}, {self.k_max}")
+        # eps > 0 keeps v/e finite for a zero-size box; floor > 0 keeps 0/0 out of the feedback.
+        if not self.clip_eps > 0:
+            raise ValueError("clip_eps must be > 0 (a zero-size box would divide by zero)")
+        if not self.feedback_floor > 0:
+            raise ValueError("feedback_floor must be > 0")
+        if len(self.feedback_luma) != 3:
+            raise ValueError("feedback_luma needs 3 weights")
+        object.__setattr__(self, "feedback_luma", tuple(float(v) for v in self.feedback_luma))
+        if self.sharpen not in SHARPEN_KERNELS:
+            raise ValueError(f"sharpen must be one of {sorted(SHARPEN_KERNELS)}")
+
+
+def build_params(cls: type, params: Any = None, feedback: str | None = None, **overrides) -> Any:
+    """Defaults of `cls`, then a feedback preset, then explicit overrides (a preset and an explicit
+    k_min/k_max together are ambiguous and refused)."""
+    p = params if params is not None else cls()
+    if feedback is not None:
+        if feedback not in FEEDBACK_PRESETS:
+            raise ValueError(f"feedback preset must be one of {sorted(FEEDBACK_PRESETS)}")
+        if "k_min" in overrides or "k_max" in overrides:
+            raise ValueError("give either a feedback preset or k_min/k_max, not both")
+        kmin, kmax = FEEDBACK_PRESETS[feedback]
+        p = dataclasses.replace(p, k_min=kmin, k_max=kmax)
+    return dataclasses.replace(p, **overrides) if overrides else p
+
+
+class Technique:
+    """Base class: buffer validation, non-finite input repair, NumPy <-> Dr.Jit, history reset."""
+
+    name: ClassVar[str] = "technique"
+    needs: ClassVar[frozenset[str]] = frozenset({"color"})
+    Params: ClassVar[type] = TAAParams
+
+    def __init__(self, params=None, *, feedback: str | None = None, **overrides):
+        self.params = build_params(self.Params, params, feedback, **overrides)
+        self.last_nonfinite_count = 0          # non-finite input pixels repaired in the last frame
+        self.last_nonfinite: dict[str, int] = {}
+        self.last_jitter: tuple[float, float] | None = None
+        self._shape: tuple[int, int] | None = None
+        self.reset()
+
+    def __repr__(self):
+        return f"{type(self).__name__}({self.params})"
+
+    # -- history -------------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Forget all history (camera cut, first frame)."""
+        self._clear_history()
+
+    def _clear_history(self) -> None:
+        raise NotImplementedError
+
+    # -- per frame -----------------------------------------------------------------------------
+    def process(self, frame: dict, *, jitter, far: float, reset: bool = False) -> np.ndarray:
+        """One frame in, the displayed (H, W, 3) float32 image out; updates the history."""
+        far = float(far)
+        if not (math.isfinite(far) and far > 0):
+            raise ValueError(f"far must be finite and > 0, got {far}")
+        jx, jy = (float(v) for v in jitter)
+        self.last_jitter = (jx, jy)  # informational: the sample is used where it was taken
+        missing = self.needs - frame.keys()
+        if missing:
+            raise KeyError(f"{self.name} needs buffers {sorted(missing)}")
+        h, w = np.shape(frame["color"])[:2]
+        bufs = sanitize.check_and_repair(frame, self.needs, (h, w), far)
+        self.last_nonfinite = bufs.pop("_nonfinite")
+        self.last_nonfinite_count = sum(self.last_nonfinite.values())
+        if self._shape != (h, w):  # a resolution change invalidates the history
+            self.reset()
+            self._shape = (h, w)
+        if reset:
+            self.reset()
+        out = self._step(to_drjit(bufs), w, h, far)
+        return from_drjit_color(out, h, w)
+
+    def _step(self, bufs: dict, width: int, height: int, far: float):
+        raise NotImplementedError
+
+
+def to_drjit(bufs: dict[str, np.ndarray]) -> dict:
+    """NumPy (H, W, ...) arrays to flat Dr.Jit arrays indexed y*W + x."""
+    out = {}
+    for key, a in bufs.items():
+        if key in ("color", "albedo"):
+            out[key] = dr.unravel(mi.Color3f, mi.Float(a.reshape(-1)))
+        elif key == "motion":
+            out[key] = dr.unravel(mi.Vector2f, mi.Float(a.reshape(-1)))
+        elif key == "object_id":
+            out[key] = mi.Int32(a.reshape(-1))
+        else:
+            out[key] = mi.Float(a.reshape(-1))
+    return out
+
+
+def from_drjit_color(c, h: int, w: int) -> np.ndarray:
+    return np.asarray(dr.ravel(c), dtype=np.float32).reshape(h, w, 3).copy()
+
+
+def from_drjit_scalar(f, h: int, w: int) -> np.ndarray:
+    return np.asarray(f, dtype=np.float32).reshape(h, w).copy()
