@@ -12,6 +12,7 @@ Buffers (row-major (H, W, ...), origin top-left):
   motion     float32 (H,W,2) pixels, current minus previous image position of the same surface
              point, jitter excluded; exact for camera motion and moving/rotating objects
   prev_depth float32 (H,W)   linear depth of the same surface point in the previous frame's camera
+  light_mask int32   (H,W)   bit i set where light i reaches the surface (shadow edges); needs color
 """
 from __future__ import annotations
 
@@ -26,7 +27,8 @@ from shading import Surface, albedo_at, frame_geometry, shade
 
 from .visibility import RasterError, VisibilityPass
 
-BUFFERS = ("color", "albedo", "depth", "object_id", "prim_id", "normal", "motion", "prev_depth")
+BUFFERS = ("color", "albedo", "depth", "object_id", "prim_id", "normal", "motion", "prev_depth",
+           "light_mask")
 
 
 def _vec(m: np.ndarray, col: int) -> mi.Vector3f:
@@ -141,8 +143,13 @@ class Rasterizer:
             a = np.asarray(x, dtype=np.float32) if c == 1 else np.stack([np.asarray(x[k]) for k in range(c)], -1)
             return a.reshape(H, W, c) if c > 1 else a.reshape(H, W)
 
-        if "color" in buffers:
-            out["color"] = img(shade(geo, surf, eye, valid), 3)
+        if "color" in buffers or "light_mask" in buffers:
+            masks: list = []
+            colour = shade(geo, surf, eye, valid, light_mask=masks)
+            if "color" in buffers:
+                out["color"] = img(colour, 3)
+            if "light_mask" in buffers:
+                out["light_mask"] = np.asarray(masks[0], np.int64).reshape(H, W).astype(np.int32)
         if "albedo" in buffers:
             bg = mi.Color3f(*self.scene.desc.background)
             out["albedo"] = img(dr.select(valid, albedo_at(geo, obj, uv, valid), bg), 3)

@@ -79,7 +79,7 @@ class VisibilityPass:
         if cached is not None:
             cached[1]._remove_from_context()
             if cached[2] is not None:
-                gl.glDeleteTextures(1, [cached[2]])
+                gl.glDeleteTextures([cached[2]])
         mesh, alpha = scene.meshes[i], scene.alphas[i]
         prim = pyrender.Primitive(positions=scene.world_vertices(i, t).astype(np.float32),
                                   indices=mesh.faces.astype(np.uint32),
@@ -135,7 +135,7 @@ class VisibilityPass:
         for _, prim, tex in self._prims.values():
             prim._remove_from_context()
             if tex is not None:
-                gl.glDeleteTextures(1, [tex])
+                gl.glDeleteTextures([tex])
         self._prims.clear()
         gl.glDeleteFramebuffers(1, [self._fb])
         gl.glDeleteRenderbuffers(2, [self._cb, self._db])

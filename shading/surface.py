@@ -96,8 +96,13 @@ def _occluded(geo: FrameGeometry, origin, direction, dist, active) -> mi.Bool:
     return _intersect_opaque(geo, ray, active).is_valid()
 
 
-def shade(geo: FrameGeometry, surf: Surface, eye: np.ndarray, active=True) -> mi.Color3f:
-    """Outgoing radiance towards the camera at `eye` (world position)."""
+def shade(geo: FrameGeometry, surf: Surface, eye: np.ndarray, active=True,
+          light_mask: list | None = None) -> mi.Color3f:
+    """Outgoing radiance towards the camera at `eye` (world position).
+
+    If `light_mask` is a list, a UInt32 is appended to it: bit i set where light i reaches the
+    point (facing and unoccluded); shadow boundaries are where it changes."""
+    mask = mi.UInt32(0)
     desc = geo.scene.desc
     hit = mi.Bool(active) & (surf.obj > 0)
     albedo = albedo_at(geo, surf.obj, surf.uv, hit)
@@ -126,5 +131,8 @@ def shade(geo: FrameGeometry, surf: Surface, eye: np.ndarray, active=True) -> mi
             if shadows:
                 lit &= ~_occluded(geo, origin, l_dir, dist * (1 - 1e-4), lit)
             irradiance += dr.select(lit, e * cos, 0.0)
+            mask |= dr.select(lit, mi.UInt32(1 << desc.lights.index(light)), 0)
         colour = albedo * irradiance
+    if light_mask is not None:
+        light_mask.append(mask)
     return dr.select(hit, colour, mi.Color3f(*desc.background))

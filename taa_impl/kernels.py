@@ -82,21 +82,21 @@ def neighbourhood(grid: Grid, img) -> Neighbourhood:
     cmn, cmx, cs = taps[OFFSETS_CROSS[0]], taps[OFFSETS_CROSS[0]], taps[OFFSETS_CROSS[0]]
     for o in OFFSETS_CROSS[1:]:
         cmn, cmx, cs = dr.minimum(cmn, taps[o]), dr.maximum(cmx, taps[o]), cs + taps[o]
-    return Neighbourhood(mn, mx, s * (1.0 / 9.0), cmn, cmx, cs * (1.0 / 5.0))
+    return Neighbourhood(mn, mx, s / 9.0, cmn, cmx, cs / 5.0)
 
 
 def mean3x3(grid: Grid, img):
     s = grid.tap(img, *OFFSETS_3X3[0])
     for o in OFFSETS_3X3[1:]:
         s = s + grid.tap(img, *o)
-    return s * (1.0 / 9.0)
+    return s / 9.0
 
 
 def mean_cross(grid: Grid, img):
     s = grid.tap(img, *OFFSETS_CROSS[0])
     for o in OFFSETS_CROSS[1:]:
         s = s + grid.tap(img, *o)
-    return s * (1.0 / 5.0)
+    return s / 5.0
 
 
 def luminance(c, weights):

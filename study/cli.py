@@ -1,0 +1,90 @@
+"""The `taa-study` command."""
+from __future__ import annotations
+
+import json
+import sys
+
+import click
+
+
+def _fail(msg: str) -> None:
+    click.echo(f"error: {msg}", err=True)
+    sys.exit(2)
+
+
+def _scene_and_size(name: str, profile: str, width: int | None, height: int | None):
+    from scenes import SceneError, get_scene
+    try:
+        scene = get_scene(name)
+        w, h = scene.resolution(profile)
+    except SceneError as exc:
+        _fail(str(exc))
+    return scene, width or w, height or h
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+def main():
+    """Reference-and-comparison study of temporal anti-aliasing."""
+
+
+@main.command()
+@click.option("--json", "as_json", is_flag=True, help="Print a JSON list instead of a table.")
+def scenes(as_json):
+    """List the built-in scenes."""
+    from scenes import builtin_names, get_scene
+    rows = []
+    for name in builtin_names():
+        s = get_scene(name)
+        d = s.desc
+        rows.append({"name": name, "frames": d.frames, "width": d.resolution.quick[0],
+                     "height": d.resolution.quick[1], "full_width": d.resolution.full[0],
+                     "full_height": d.resolution.full[1], "objects": len(d.objects),
+                     "triangles": int(sum(len(m.faces) for m in s.meshes)), "lights": len(d.lights),
+                     "transport": d.transport, "features": d.features(), "stresses": d.stresses})
+    if as_json:
+        click.echo(json.dumps(rows, indent=2))
+        return
+    for r in rows:
+        click.echo(f"{r['name']:16s} {r['frames']:4d} frames  quick {r['width']}x{r['height']}  "
+                   f"full {r['full_width']}x{r['full_height']}  {r['objects']:3d} objects "
+                   f"{r['triangles']:6d} tris  {r['transport']:15s} {', '.join(r['features'])}")
+        click.echo(f"{'':16s} stresses: {r['stresses']}")
+
+
+@main.command()
+@click.option("--scene", "scene_name", required=True, help="Built-in scene name or scene file.")
+@click.option("--frame", default=0, show_default=True, help="Frame index of the scene's animation.")
+@click.option("--profile", type=click.Choice(["quick", "full"]), default="quick", show_default=True)
+@click.option("--width", type=int, help="Override the profile's width.")
+@click.option("--height", type=int, help="Override the profile's height.")
+@click.option("--samples", default=256, show_default=True, help="Jittered raster frames averaged.")
+@click.option("--target-noise-db", default=60.0, show_default=True,
+              help="Reference convergence target (display-domain noise PSNR).")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+def agree(scene_name, frame, profile, width, height, samples, target_noise_db, as_json):
+    """Prove the raster and the Mitsuba reference agree on one scene frame."""
+    scene, w, h = _scene_and_size(scene_name, profile, width, height)
+    if samples < 1:
+        _fail(f"--samples must be >= 1, got {samples}")
+    from study.agreement import TARGETS, check_agreement
+    a = check_agreement(scene, w, h, frame=frame, samples=samples, target_noise_db=target_noise_db,
+                        progress=not as_json)
+    if as_json:
+        click.echo(json.dumps(a.as_dict()))
+        return
+    ok = a.meets_targets()
+    mark = {True: "ok", False: "BELOW TARGET"}
+    click.echo(f"scene {a.scene}, frame {a.frame}, {a.width}x{a.height}")
+    click.echo(f"  agreement PSNR (display, {a.raster_samples} raster frames vs reference): "
+               f"{a.agreement_psnr_db:.2f} dB  [target >= {TARGETS['agreement_psnr_db']}: {mark[ok['agreement_psnr_db']]}]")
+    click.echo(f"  relative MSE (linear HDR): {a.relative_mse:.3e}")
+    click.echo(f"  interior max |raster - Mitsuba ray| at pixel centres: {a.interior_max_abs_err:.2e} "
+               f"over {a.interior_pixels} pixels  [target <= {TARGETS['interior_max_abs_err']:g}: "
+               f"{mark[ok['interior_max_abs_err']]}]")
+    click.echo(f"  reference: {a.reference_spp} spp, {a.reference_seconds:.1f} s"
+               f"{' (cached)' if a.reference_cached else ''}, noise PSNR {a.reference_noise_psnr_db:.2f} dB"
+               f"  [target >= {TARGETS['reference_noise_psnr_db']}: {mark[ok['reference_noise_psnr_db']]}]")
+    click.echo(f"  single sample per pixel: {a.single_sample} (pixel centres matching a single ray: "
+               f"{100 * a.centre_match_fraction:.3f} %)")
+    if not all(ok.values()):
+        sys.exit(1)

@@ -1,0 +1,185 @@
+"""Plain-NumPy reference of the baseline TAA (spec §5) and the improved TAA (spec §6).
+
+Written for clarity, not speed, and independently of taa_impl's Dr.Jit kernels: per-pixel loops
+for the velocity search and the bilinear fetch, the sharpen and Sobel kernels applied as the
+matrices the thesis prints. float32 throughout so it agrees with the Dr.Jit version to ~1e-6.
+It expects finite inputs (the repair of non-finite pixels is tested separately).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+F = np.float32
+NINE = [(dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1)]   # row-major
+CROSS = [(0, -1), (-1, 0), (0, 0), (1, 0), (0, 1)]
+SHARPEN = {
+    "xu": [[0, -1, 0], [-1, 5, -1], [0, -1, 0]],
+    "normalised": [[0, -.25, 0], [-.25, 2, -.25], [0, -.25, 0]],
+    "none": [[0, 0, 0], [0, 1, 0], [0, 0, 0]],
+}
+GX = [[-1, 0, 1], [-2, 0, 2], [-1, 0, 1]]
+GY = [[1, 2, 1], [0, 0, 0], [-1, -2, -1]]
+
+
+def tap(img, dx, dy):
+    """img[y+dy, x+dx] for every pixel, coordinates clamped to the image."""
+    h, w = img.shape[:2]
+    ys, xs = np.indices((h, w))
+    return img[np.clip(ys + dy, 0, h - 1), np.clip(xs + dx, 0, w - 1)]
+
+
+def min_max_avg(img, offsets):
+    taps = [tap(img, dx, dy) for dx, dy in offsets]
+    lo, hi, total = taps[0], taps[0], taps[0]
+    for t in taps[1:]:
+        lo, hi, total = np.minimum(lo, t), np.maximum(hi, t), total + t
+    return lo, hi, total / F(len(offsets))
+
+
+def convolve3x3(img, kernel):
+    """sum_ij kernel[j][i] * img[y + j - 1, x + i - 1] (kernel row 0 = the row above)."""
+    out = np.zeros_like(img)
+    for j in range(3):
+        for i in range(3):
+            if kernel[j][i] != 0:
+                out = out + F(kernel[j][i]) * tap(img, i - 1, j - 1)
+    return out
+
+
+def lum(c, weights):
+    return c[..., 0] * F(weights[0]) + c[..., 1] * F(weights[1]) + c[..., 2] * F(weights[2])
+
+
+def closest_velocity(depth, motion):
+    h, w = depth.shape
+    vel = np.zeros((h, w, 2), F)
+    for y in range(h):
+        for x in range(w):
+            best = None
+            for dx, dy in NINE:
+                xx, yy = min(max(x + dx, 0), w - 1), min(max(y + dy, 0), h - 1)
+                if best is None or depth[yy, xx] < depth[best]:
+                    best = (yy, xx)
+            vel[y, x] = motion[best]
+    return vel
+
+
+def bilinear_history(hist, vel):
+    """History at (x + 0.5 - vx, y + 0.5 - vy); valid = inside [0, W] x [0, H]."""
+    h, w = hist.shape[:2]
+    out = np.zeros_like(hist)
+    valid = np.zeros((h, w), bool)
+    for y in range(h):
+        for x in range(w):
+            px = F(x + 0.5) - vel[y, x, 0]
+            py = F(y + 0.5) - vel[y, x, 1]
+            valid[y, x] = 0 <= px <= w and 0 <= py <= h
+            if not valid[y, x]:
+                continue
+            u, v = px - F(0.5), py - F(0.5)
+            x0, y0 = int(np.floor(u)), int(np.floor(v))
+            tx, ty = u - F(x0), v - F(y0)
+
+            def at(xx, yy):
+                return hist[min(max(yy, 0), h - 1), min(max(xx, 0), w - 1)]
+            top = at(x0, y0) * (F(1) - tx) + at(x0 + 1, y0) * tx
+            bottom = at(x0, y0 + 1) * (F(1) - tx) + at(x0 + 1, y0 + 1) * tx
+            out[y, x] = top * (F(1) - ty) + bottom * ty
+    return out, valid
+
+
+def clip_toward_centre(hist, bmin, bmax, eps):
+    p = (bmax + bmin) * F(0.5)
+    e = (bmax - bmin) * F(0.5) + F(eps)
+    v = hist - p
+    m = np.max(np.abs(v / e), axis=-1, keepdims=True)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        clipped = p + v / m
+    return np.where(m > 1, clipped, hist)
+
+
+def feedback(lc, lh, params):
+    d = np.abs(lc - lh) / np.maximum(np.maximum(lc, lh), F(params.feedback_floor))
+    wgt = (F(1) - np.clip(d, 0, 1)) ** 2
+    return F(params.k_min) + (F(params.k_max) - F(params.k_min)) * wgt
+
+
+def mix(a, b, t):
+    return a * (F(1) - t) + b * t
+
+
+class OracleTAA:
+    """improved=False: spec §5; improved=True: spec §6. `params` is a taa_impl params dataclass."""
+
+    def __init__(self, params, improved: bool):
+        self.p, self.improved = params, improved
+        self.history = None
+        self.sobel_history = None
+        self.terms = {}
+
+    def process(self, frame, far, reset=False):
+        p = self.p
+        c = frame["color"].astype(F)
+        if reset or (self.history is not None and self.history.shape != c.shape):
+            self.history = self.sobel_history = None
+        vel = closest_velocity(frame["depth"].astype(F), frame["motion"].astype(F))
+        lo3, hi3, avg3 = min_max_avg(c, NINE)
+        lox, hix, avgx = min_max_avg(c, CROSS)
+        if self.improved:
+            a = self._aliased_value(frame, F(far), vel)[..., None]
+            cmin, cmax = mix(lox, lo3, a), mix(hix, hi3, a)
+            bmin, bmax = mix(c, cmin, a), mix(c, cmax, a)
+        else:
+            bmin, bmax = (lo3 + lox) / F(2), (hi3 + hix) / F(2)
+        if self.history is None:
+            blend = c
+        else:
+            h, valid = bilinear_history(self.history, vel)
+            h = clip_toward_centre(h, bmin, bmax, p.clip_eps)
+            k = feedback(lum(c, p.feedback_luma), lum(h, p.feedback_luma), p)[..., None]
+            blend = np.where(valid[..., None], c + k * (h - c), c)
+        self.history = blend.astype(F)
+        return np.maximum(convolve3x3(self.history, SHARPEN[p.sharpen]), 0).astype(F)
+
+    def _aliased_value(self, frame, far, vel):
+        p, t = self.p, self.terms
+        z = frame["depth"].astype(F) / far
+        zprev = frame["prev_depth"].astype(F) / far
+        # Sobel of albedo luminance, colour luminance and normalised depth.
+        mags = []
+        for img in (lum(frame["albedo"].astype(F), p.sobel_luma),
+                    lum(frame["color"].astype(F), p.sobel_luma), z):
+            gx, gy = convolve3x3(img, GX), convolve3x3(img, GY)
+            mags.append(np.sqrt(gx * gx + gy * gy))
+        u, l, d = mags
+        g = np.clip(F(p.sobel_weight_albedo) * u + F(p.sobel_weight_color) * l
+                    + F(p.sobel_weight_depth) * d, 0, 1)
+        s = np.sqrt(g * g * (F(3) - F(2) * g))
+        t["sobel_raw"] = s
+        # Its own TAA: clamp to the averaged 3x3/cross box, one channel, no sharpen.
+        if self.sobel_history is not None:
+            lo3, hi3, _ = min_max_avg(s, NINE)
+            lox, hix, _ = min_max_avg(s, CROSS)
+            hs, valid = bilinear_history(self.sobel_history[..., None], vel)
+            hs = np.clip(hs[..., 0], (lo3 + lox) / F(2), (hi3 + hix) / F(2))
+            k = feedback(s, hs, p)
+            s = np.where(valid, s + k * (hs - s), s)
+        self.sobel_history = s.astype(F)
+        t["sobel"] = s
+        t["sobelAvgCross"] = min_max_avg(s, CROSS)[2]
+        t["sobelAvg3x3"] = min_max_avg(s, NINE)[2]
+        # Model IDs: other-model pixels among the 9, divided by 9.
+        ids = frame["object_id"]
+        t["modelAverage"] = sum((tap(ids, dx, dy) != ids).astype(F) for dx, dy in NINE) / F(9)
+        # Depth pseudo-variances.
+        dmin, dmax, davg = min_max_avg(z, NINE)
+        mdd = np.minimum(np.abs(dmin - davg), np.abs(dmax - davg))
+        on = (mdd >= F(p.depth_threshold)) & (mdd > 0)
+        safe = np.where(on, mdd, F(1))
+        t["depthPV"] = np.where(on, (np.abs(z - davg) / safe) ** 2, F(0))
+        t["depthTPV"] = np.where(on, (np.abs(zprev - davg) / safe) ** 4, F(0))
+        t["sobelAvg"] = mix(t["sobelAvgCross"], t["sobelAvg3x3"],
+                            np.clip(t["modelAverage"] + t["sobel"], 0, 1))
+        t["aliasedValue"] = np.clip(t["sobelAvg"] + t["depthPV"] + t["depthTPV"]
+                                    + t["modelAverage"], 0, 1)
+        return t["aliasedValue"]
