@@ -27,7 +27,7 @@ class BackendError(RuntimeError):
 
 
 def _llvm_major(path: str) -> int | None:
-    m = re.search(r"libLLVM[-.]?(\d+)", os.path.basename(path)) or re.search(r"llvm-(\d+)", path)
+    m = re.search(r"libLLVM(?:-|\.so\.)(\d+)", os.path.basename(path)) or re.search(r"llvm-(\d+)", path)
     return int(m.group(1)) if m else None
 
 

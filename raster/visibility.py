@@ -31,18 +31,31 @@ class RasterError(RuntimeError):
     pass
 
 
-class VisibilityPass:
-    def __init__(self, width: int, height: int):
-        self.width, self.height = width, height
+_PLATFORM = None
+
+
+def _shared_platform():
+    """One surfaceless EGL context per process: pyrender's delete_context terminates the EGL
+    display, which would invalidate every other context, so ours is never deleted."""
+    global _PLATFORM
+    if _PLATFORM is None:
         try:
             device = egl.get_device_by_index(int(os.environ.get("EGL_DEVICE_ID", "0")))
-            self._platform = egl.EGLPlatform(width, height, device=device)
-            self._platform.init_context()
-            self._platform.make_current()
+            platform = egl.EGLPlatform(16, 16, device=device)
+            platform.init_context()
         except Exception as exc:
             raise RasterError(f"cannot create a headless OpenGL (EGL) context: {exc}. "
                               "Install Mesa's EGL driver: apt-get install libegl1 libegl-mesa0 "
                               "libgl1-mesa-dri") from exc
+        _PLATFORM = platform
+    _PLATFORM.make_current()
+    return _PLATFORM
+
+
+class VisibilityPass:
+    def __init__(self, width: int, height: int):
+        self.width, self.height = width, height
+        self._platform = _shared_platform()
         self._programs = ShaderProgramCache(SHADER_DIR)
         self._fb = gl.glGenFramebuffers(1)
         self._cb, self._db = gl.glGenRenderbuffers(2)
@@ -132,6 +145,7 @@ class VisibilityPass:
         return ids[..., 0].copy(), ids[..., 1].copy()
 
     def close(self):
+        self._platform.make_current()
         for _, prim, tex in self._prims.values():
             prim._remove_from_context()
             if tex is not None:
@@ -140,4 +154,3 @@ class VisibilityPass:
         gl.glDeleteFramebuffers(1, [self._fb])
         gl.glDeleteRenderbuffers(2, [self._cb, self._db])
         self._programs.clear()
-        self._platform.delete_context()

@@ -134,5 +134,5 @@ def shade(geo: FrameGeometry, surf: Surface, eye: np.ndarray, active=True,
             mask |= dr.select(lit, mi.UInt32(1 << desc.lights.index(light)), 0)
         colour = albedo * irradiance
     if light_mask is not None:
-        light_mask.append(mask)
+        light_mask.append(dr.select(hit, mask, 0))
     return dr.select(hit, colour, mi.Color3f(*desc.background))

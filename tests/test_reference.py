@@ -1,0 +1,96 @@
+import os
+
+import numpy as np
+import pytest
+
+import references.cache as cache_mod
+from backend import mi
+from conftest import two_colour_scene
+from references import ReferenceCache, render_reference, trace_pixel_centres
+from references.mitsuba_scene import sensor
+from scenes import get_scene
+
+
+def test_mitsuba_camera_matches_ours():
+    scene = get_scene("atrium")
+    cam = scene.camera(0, 80, 45)
+    pts = np.array([[0.3, 1.0, 0.2], [-2.0, 0.5, -1.5], [1.5, 2.2, 1.0]])
+    img, depth = cam.project(pts)
+    s = sensor(cam, 1)
+    ray, _ = s.sample_ray(0.0, 0.5, mi.Point2f(mi.Float(img[:, 0] / 80), mi.Float(img[:, 1] / 45)),
+                          mi.Point2f(0.5, 0.5))
+    d = np.array([np.asarray(ray.d[k]) for k in range(3)]).T
+    want = pts - cam.position
+    want /= np.linalg.norm(want, axis=1, keepdims=True)
+    np.testing.assert_allclose(d, want, atol=2e-6)
+    assert np.all(depth > 0)
+
+
+def test_pixel_centre_rays_match_raster_colours_exactly_in_flat_regions():
+    from raster import Rasterizer
+    scene = two_colour_scene(transport="direct")
+    rgb, ids = trace_pixel_centres(scene, 0, 40, 30)
+    r = Rasterizer(scene, 40, 30)
+    try:
+        b = r.render(0, (0, 0), ("color", "object_id"))
+    finally:
+        r.close()
+    same = ids == b["object_id"]
+    assert same.mean() > 0.99
+    np.testing.assert_allclose(rgb[same], b["color"][same], atol=1e-6)
+
+
+def test_convergence_target_is_met_and_recorded():
+    scene = two_colour_scene(rotate_deg=23)
+    lo = render_reference(scene, 0, 32, 24, target_noise_db=45, spp_per_pass=16, min_passes=4)
+    hi = render_reference(scene, 0, 32, 24, target_noise_db=62, spp_per_pass=16, min_passes=4)
+    assert lo.noise_psnr_db >= 45 and hi.noise_psnr_db >= 62
+    assert hi.spp > lo.spp
+    # interior pixels are noise-free: one shading value over the whole pixel
+    assert lo.stderr[12, 2].max() == 0.0
+    # the quad's coverage of an edge pixel is between the two pure colours
+    assert np.all(lo.image >= 0) and np.all(lo.image <= 1.0 + 1e-6)
+
+
+def test_cache_reads_back_detects_corruption_and_leaves_no_partial_file(tmp_path, monkeypatch):
+    scene = two_colour_scene()
+    logs = []
+    cache = ReferenceCache(tmp_path, log=logs.append)
+    a, cached = cache.get(scene, 0, 24, 16, target_noise_db=50)
+    assert not cached
+    b, cached = cache.get(scene, 0, 24, 16, target_noise_db=50)
+    assert cached and np.array_equal(a.image, b.image) and b.spp == a.spp
+    path = cache.path(scene, a.key)
+    import OpenEXR
+    h = OpenEXR.File(str(path), header_only=True).header()
+    assert h["taa_spp"] == a.spp and h["taa_scene_hash"] == scene.content_hash
+    assert abs(h["taa_noise_psnr_db"] - a.noise_psnr_db) < 1e-4   # stored as float32
+
+    # A truncated file is detected, reported, removed and rendered again.
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+    c, cached = cache.get(scene, 0, 24, 16, target_noise_db=50)
+    assert not cached and np.array_equal(c.image, a.image)
+    assert any("corrupt" in m for m in logs)
+
+    # A different target is a different reference.
+    d, cached = cache.get(scene, 0, 24, 16, target_noise_db=52)
+    assert not cached and d.key != a.key
+
+    # An interrupted render leaves nothing behind.
+    def boom(*args, **kw):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(cache_mod.OpenEXR.File, "write", lambda self, p: (open(p, "wb").write(b"xx"), boom()))
+    with pytest.raises(KeyboardInterrupt):
+        cache.get(scene, 0, 24, 16, target_noise_db=55)
+    names = sorted(p.name for p in path.parent.iterdir())
+    assert not any(n.endswith(".part") for n in names)
+    assert len(names) == 2          # the two complete references only
+
+
+def test_path_transport_is_refused_clearly():
+    scene = two_colour_scene(transport="direct")
+    from scenes.resolved import ResolvedScene
+    s = ResolvedScene(scene.desc.model_copy(update={"transport": "path"}))
+    with pytest.raises(Exception, match="path"):
+        render_reference(s, 0, 8, 8)
