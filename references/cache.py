@@ -2,7 +2,7 @@
 
 The key hashes everything that determines the image: the scene's content hash (description,
 meshes, textures), the frame, the camera state, the resolution, the convergence settings and the
-source of the shading and reference code. Files are written to a temporary name and renamed, so an
+source of the shading and reference code. Files are written atomically (references/exr.py), so an
 interrupted render leaves nothing; a file that fails to read, lacks its key or holds NaN/Inf is
 reported, removed and rendered again.
 """
@@ -12,14 +12,13 @@ import hashlib
 import json
 import os
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
-import OpenEXR
 
 from scenes import ResolvedScene
 
+from .exr import read_exr, write_exr
 from .render import Reference, render_reference
 
 _CODE_FILES = ("shading/surface.py", "shading/frame.py", "references/render.py",
@@ -56,12 +55,11 @@ class ReferenceCache:
 
     def _read(self, path: Path, key: str, shape) -> Reference | None:
         try:
-            f = OpenEXR.File(str(path), separate_channels=True)
-            h, ch = f.header(), f.channels()
+            h, ch = read_exr(path)
             if h.get("taa_key") != key:
                 raise ValueError(f"header key {h.get('taa_key')!r} != {key!r}")
-            img = np.stack([ch[c].pixels for c in "RGB"], -1).astype(np.float32)
-            se = np.stack([ch[f"stderr.{c}"].pixels for c in "RGB"], -1).astype(np.float32)
+            img = np.stack([ch[c] for c in "RGB"], -1).astype(np.float32)
+            se = np.stack([ch[f"stderr.{c}"] for c in "RGB"], -1).astype(np.float32)
             if img.shape != shape or not (np.all(np.isfinite(img)) and np.all(np.isfinite(se))):
                 raise ValueError("wrong shape or NaN/Inf pixels")
             return Reference(img, se, int(h["taa_spp"]), int(h["taa_passes"]), float(h["taa_seconds"]),
@@ -72,23 +70,14 @@ class ReferenceCache:
             return None
 
     def _write(self, path: Path, ref: Reference, scene: ResolvedScene, t: int) -> None:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage,
-                  "taa_key": ref.key, "taa_scene": scene.name, "taa_scene_hash": scene.content_hash,
+        header = {"taa_key": ref.key, "taa_scene": scene.name, "taa_scene_hash": scene.content_hash,
                   "taa_frame": int(t), "taa_spp": int(ref.spp), "taa_passes": int(ref.passes),
                   "taa_seconds": float(ref.seconds), "taa_noise_psnr_db": float(ref.noise_psnr_db),
                   "taa_code": code_version()}
         chans = {"RGB": ref.image}
         for k, c in enumerate("RGB"):
-            chans[f"stderr.{c}"] = np.ascontiguousarray(ref.stderr[..., k])
-        fd, tmp = tempfile.mkstemp(suffix=".exr.part", dir=path.parent)
-        os.close(fd)
-        try:
-            OpenEXR.File(header, chans).write(tmp)
-            os.replace(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+            chans[f"stderr.{c}"] = ref.stderr[..., k]
+        write_exr(path, chans, header)
 
     def get(self, scene: ResolvedScene, t: int, width: int, height: int, *, target_noise_db=60.0,
             spp_per_pass=64, progress=None) -> tuple[Reference, bool]:

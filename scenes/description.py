@@ -70,6 +70,7 @@ class Texture(_Strict):
 
 class Material(_Strict):
     albedo: RGB = (0.8, 0.8, 0.8)
+    emission: RGB = (0.0, 0.0, 0.0)       # radiance added to the shaded colour (lamps, HDR tests)
     texture: Optional[Texture] = None     # multiplies albedo
     alpha: Optional[Texture] = None       # cut-out: a sample is kept where alpha >= alpha_threshold
     alpha_threshold: float = Field(0.5, gt=0, le=1)

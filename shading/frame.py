@@ -24,6 +24,8 @@ class FrameGeometry:
     face_offset: np.ndarray   # first global face of each object (n_objects + 1)
     obj_smooth: mi.Bool       # per object id (index 0 = background)
     obj_albedo: mi.Float      # per object id, flat rgb
+    obj_emission: mi.Float    # per object id, flat rgb
+    has_emission: bool
     obj_tex: mi.UInt32        # per object id: offset, width, height into tex_data (width 0 = none)
     tex_data: mi.Float
     obj_alpha: mi.UInt32      # per object id: offset, width, height into alpha_data (width 0 = none)
@@ -84,6 +86,7 @@ def frame_geometry(scene: ResolvedScene, t: int) -> FrameGeometry:
 
     objs = scene.desc.objects
     albedo = np.array([[0, 0, 0]] + [o.material.albedo for o in objs], np.float32)
+    emission = np.array([[0, 0, 0]] + [o.material.emission for o in objs], np.float32)
     smooth = [False] + [m.normals is not None for m in scene.meshes]
     obj_tex, tex_data = _texture_table(scene.textures, 3)
     obj_alpha, alpha_data = _texture_table(scene.alphas, 1)
@@ -93,6 +96,7 @@ def frame_geometry(scene: ResolvedScene, t: int) -> FrameGeometry:
         positions=mi.Float(np.concatenate(pos).ravel()), vnormals=mi.Float(np.concatenate(nrm).ravel()),
         uvs=mi.Float(np.concatenate(uv).ravel()), faces=mi.UInt32(np.concatenate(fcs).astype(np.uint32).ravel()),
         face_offset=np.array(offsets, np.int64), obj_smooth=mi.Bool(smooth), obj_albedo=mi.Float(albedo.ravel()),
+        obj_emission=mi.Float(emission.ravel()), has_emission=bool(emission.any()),
         obj_tex=obj_tex, tex_data=tex_data, obj_alpha=obj_alpha, obj_alpha_threshold=mi.Float(thr),
         alpha_data=alpha_data, has_alpha=any(a is not None for a in scene.alphas),
         mitsuba=mi.load_dict(shapes))

@@ -4,6 +4,7 @@ Light transport (declared by the scene, nothing more is computed):
   unlit           colour = albedo
   direct          colour = albedo * (ambient + sum_i E_i * max(0, n . l_i))
   direct_shadows  as direct, each light term times a visibility ray against the same triangles
+A material's emission is added to the result in every mode.
 Directional lights give E = intensity; point lights E = intensity / d^2. Surfaces are two-sided:
 normals are turned to face the viewer. Textures use nearest-texel lookup with wrap-around.
 """
@@ -133,6 +134,8 @@ def shade(geo: FrameGeometry, surf: Surface, eye: np.ndarray, active=True,
             irradiance += dr.select(lit, e * cos, 0.0)
             mask |= dr.select(lit, mi.UInt32(1 << desc.lights.index(light)), 0)
         colour = albedo * irradiance
+    if geo.has_emission:
+        colour += dr.gather(mi.Color3f, geo.obj_emission, surf.obj, hit)
     if light_mask is not None:
         light_mask.append(dr.select(hit, mask, 0))
     return dr.select(hit, colour, mi.Color3f(*desc.background))

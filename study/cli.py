@@ -107,3 +107,60 @@ def agree(scene_names, all_builtin, frame, profile, width, height, samples, targ
         click.echo(json.dumps(out[0] if len(out) == 1 else out))
     if not all(all(a.meets_targets().values()) for a in results):
         sys.exit(1)
+
+
+@main.command()
+@click.option("--scene", "scene_name", required=True, help="Built-in scene name or scene file.")
+@click.option("--frame", default=0, show_default=True)
+@click.option("--profile", type=click.Choice(["quick", "full"]), default="quick", show_default=True)
+@click.option("--width", type=int)
+@click.option("--height", type=int)
+@click.option("--jitter", nargs=2, type=float, default=(0.0, 0.0), show_default=True,
+              help="Sub-pixel offset (ox, oy) of the raster frame's sample.")
+@click.option("--buffers", default="color,albedo,depth,object_id,motion", show_default=True,
+              help="Comma-separated raster buffers to write.")
+@click.option("--no-reference", is_flag=True, help="Write the raster buffers only.")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), required=True)
+def render(scene_name, frame, profile, width, height, jitter, buffers, no_reference, out_dir):
+    """Write one frame's raster buffers (EXR) and its reference (EXR + display PNG)."""
+    from pathlib import Path
+
+    import numpy as np
+    from PIL import Image
+
+    from display import DisplayTransform
+    from raster import BUFFERS, Rasterizer
+    from references import ReferenceCache
+    from references.exr import write_exr
+
+    scene, w, h = _scene_and_size(scene_name, profile, width, height)
+    wanted = [b.strip() for b in buffers.split(",") if b.strip()]
+    bad = [b for b in wanted if b not in BUFFERS]
+    if bad:
+        _fail(f"unknown buffer(s) {bad}; available: {', '.join(BUFFERS)}")
+    if not 0 <= frame < scene.desc.frames:
+        _fail(f"scene {scene.name!r} has frames 0..{scene.desc.frames - 1}; --frame {frame} is out of range")
+    out = Path(out_dir)
+    r = Rasterizer(scene, w, h)
+    try:
+        bufs = r.render(frame, jitter, wanted)
+    finally:
+        r.close()
+    stem = f"{scene.name}_f{frame:04d}"
+    for name, a in bufs.items():
+        a = a.astype(np.float32)
+        chans = {"RGB": a} if a.ndim == 3 and a.shape[2] == 3 else \
+            {f"{name}.{'xy'[k]}": a[..., k] for k in range(a.shape[2])} if a.ndim == 3 else {name: a}
+        write_exr(out / f"{stem}_{name}.exr", chans, {"taa_jitter": f"{jitter[0]} {jitter[1]}"})
+    disp = None
+    if not no_reference:
+        ref, cached = ReferenceCache().get(scene, frame, w, h)
+        write_exr(out / f"{stem}_reference.exr", {"RGB": ref.image}, {"taa_spp": ref.spp})
+        disp = DisplayTransform.from_reference(ref.image)
+        Image.fromarray(disp.to_8bit(ref.image)).save(out / f"{stem}_reference.png")
+        click.echo(f"reference: {ref.spp} spp, noise PSNR {ref.noise_psnr_db:.1f} dB"
+                   f"{' (cached)' if cached else ''}")
+    if "color" in bufs:
+        disp = disp or DisplayTransform.from_reference(bufs["color"])
+        Image.fromarray(disp.to_8bit(bufs["color"])).save(out / f"{stem}_raster.png")
+    click.echo(f"wrote {len(list(out.glob(stem + '*')))} files to {out}/")

@@ -3,7 +3,7 @@ import os
 import numpy as np
 import pytest
 
-import references.cache as cache_mod
+import references.exr as exr_mod
 from backend import mi
 from conftest import two_colour_scene
 from references import ReferenceCache, render_reference, trace_pixel_centres
@@ -80,7 +80,7 @@ def test_cache_reads_back_detects_corruption_and_leaves_no_partial_file(tmp_path
     # An interrupted render leaves nothing behind.
     def boom(*args, **kw):
         raise KeyboardInterrupt
-    monkeypatch.setattr(cache_mod.OpenEXR.File, "write", lambda self, p: (open(p, "wb").write(b"xx"), boom()))
+    monkeypatch.setattr(exr_mod.OpenEXR.File, "write", lambda self, p: (open(p, "wb").write(b"xx"), boom()))
     with pytest.raises(KeyboardInterrupt):
         cache.get(scene, 0, 24, 16, target_noise_db=55)
     names = sorted(p.name for p in path.parent.iterdir())
