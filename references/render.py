@@ -21,7 +21,7 @@ from display import DisplayTransform
 from scenes import ResolvedScene
 from shading import frame_geometry, shade, trace_visible
 
-from .mitsuba_scene import SharedShadingIntegrator, sensor
+from .mitsuba_scene import SharedShadingIntegrator, path_integrator, path_scene, sensor
 
 
 class ReferenceError(RuntimeError):
@@ -52,13 +52,21 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
                      target_noise_db: float = 60.0, spp_per_pass: int = 64, min_passes: int = 8,
                      max_spp: int = 1 << 16, progress: Callable[[int, float], None] | None = None
                      ) -> Reference:
-    if scene.desc.transport == "path":
-        raise ReferenceError(f"scene {scene.name!r}: transport 'path' (Mitsuba's multi-bounce path "
-                             "tracer) is not implemented yet; use unlit, direct or direct_shadows")
     cam = scene.camera(t, width, height)
-    geo = frame_geometry(scene, t)
-    integ = SharedShadingIntegrator(geo, cam.position)
-    sens = sensor(cam, spp_per_pass)
+    path = scene.desc.transport == "path"
+    if path and any(a is not None for a in scene.alphas):
+        # Mitsuba's path tracer tests shadow rays with ray_test, which sees a masked surface as
+        # opaque, and spends a bounce on each cut-out crossed: the reference would be wrong.
+        raise ReferenceError(f"scene {scene.name!r}: transport 'path' does not support alpha cut-outs "
+                             "(Mitsuba's path tracer treats masked surfaces as opaque to shadow rays); "
+                             "use direct_shadows")
+    if path:
+        mscene, integ = path_scene(scene, t), path_integrator(scene.desc.path_max_depth)
+    else:
+        geo = frame_geometry(scene, t)
+        mscene, integ = geo.mitsuba, SharedShadingIntegrator(geo, cam.position)
+    sens = sensor(cam, spp_per_pass, alpha=path)
+    background = np.asarray(scene.desc.background, np.float64)
     start = time.perf_counter()
     mean = m2 = None          # Welford in the linear domain (stderr) ...
     dmean = dm2 = None        # ... and in the display domain (noise target)
@@ -67,8 +75,10 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
     max_passes = max(min_passes, max_spp // spp_per_pass)
     wanted = min_passes
     while n < wanted:
-        img = np.asarray(mi.render(geo.mitsuba, sensor=sens, integrator=integ, seed=n,
+        img = np.asarray(mi.render(mscene, sensor=sens, integrator=integ, seed=n,
                                    spp=spp_per_pass), np.float64)
+        if path:   # rgba: composite the fraction of samples that missed over the background
+            img = img[..., :3] + (1.0 - img[..., 3:4]) * background
         if not np.all(np.isfinite(img)):
             raise ReferenceError(f"scene {scene.name!r} frame {t}: pass {n} produced NaN/Inf")
         n += 1

@@ -152,6 +152,7 @@ class Scene(_Strict):
     lights: tuple[Light, ...] = ()
     ambient: RGB = (0.0, 0.0, 0.0)
     background: RGB = (0.0, 0.0, 0.0)
+    path_max_depth: int = Field(8, ge=2)  # transport 'path': Mitsuba's path tracer, bounces + 1
 
     @field_validator("objects")
     @classmethod

@@ -54,9 +54,9 @@ def _texture_table(textures, channels):
     return mi.UInt32(np.array(offsets, np.uint32)), mi.Float(flat)
 
 
-def _mitsuba_mesh(name, verts, faces, uvs, normals, obj_id):
-    m = mi.Mesh(name, len(verts), len(faces), has_vertex_normals=normals is not None,
-                has_vertex_texcoords=uvs is not None)
+def mitsuba_mesh(name, verts, faces, uvs, normals, obj_id, props=None):
+    m = mi.Mesh(name, len(verts), len(faces), props=props or mi.Properties(),
+                has_vertex_normals=normals is not None, has_vertex_texcoords=uvs is not None)
     p = mi.traverse(m)
     p["vertex_positions"] = mi.Float(verts.ravel())
     p["faces"] = mi.UInt32(faces.astype(np.uint32).ravel())
@@ -82,7 +82,7 @@ def frame_geometry(scene: ResolvedScene, t: int) -> FrameGeometry:
         fcs.append(mesh.faces + vbase)
         vbase += len(v)
         offsets.append(offsets[-1] + len(mesh.faces))
-        shapes[f"obj_{i}"] = _mitsuba_mesh(f"obj_{i}", v, mesh.faces, mesh.uvs, n, i + 1)
+        shapes[f"obj_{i}"] = mitsuba_mesh(f"obj_{i}", v, mesh.faces, mesh.uvs, n, i + 1)
 
     objs = scene.desc.objects
     albedo = np.array([[0, 0, 0]] + [o.material.albedo for o in objs], np.float32)

@@ -4,7 +4,9 @@ Light transport (declared by the scene, nothing more is computed):
   unlit           colour = albedo
   direct          colour = albedo * (ambient + sum_i E_i * max(0, n . l_i))
   direct_shadows  as direct, each light term times a visibility ray against the same triangles
-A material's emission is added to the result in every mode.
+A material's emission is added to the result in every mode. A scene that declares 'path' gets
+Mitsuba's multi-bounce path tracer as its reference (references/mitsuba_scene.py); its raster
+frames are shaded as direct_shadows, and the gap between the two is reported, not hidden.
 Directional lights give E = intensity; point lights E = intensity / d^2. Surfaces are two-sided:
 normals are turned to face the viewer. Textures use nearest-texel lookup with wrap-around.
 """
@@ -115,7 +117,7 @@ def shade(geo: FrameGeometry, surf: Surface, eye: np.ndarray, active=True,
         n_geo = dr.select(flip, -surf.n_geo, surf.n_geo)
         n_sh = dr.select(flip, -surf.n_sh, surf.n_sh)
         irradiance = mi.Color3f(*desc.ambient)
-        shadows = desc.transport == "direct_shadows"
+        shadows = desc.transport in ("direct_shadows", "path")
         origin = surf.p + n_geo * (1e-4 * (1.0 + dr.max(dr.abs(surf.p))))
         for light in desc.lights:
             if isinstance(light, DirectionalLight):

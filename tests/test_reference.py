@@ -88,9 +88,23 @@ def test_cache_reads_back_detects_corruption_and_leaves_no_partial_file(tmp_path
     assert len(names) == 2          # the two complete references only
 
 
-def test_path_transport_is_refused_clearly():
-    scene = two_colour_scene(transport="direct")
+def test_path_tracer_with_one_bounce_equals_direct_shadows():
+    """Mitsuba's own path tracer, limited to direct light and with no ambient, must reproduce our
+    direct_shadows shading (the pi scaling of lights, two-sided BSDFs, textures, background)."""
+    from display import DisplayTransform, psnr
     from scenes.resolved import ResolvedScene
-    s = ResolvedScene(scene.desc.model_copy(update={"transport": "path"}))
-    with pytest.raises(Exception, match="path"):
+    for name in ("atrium", "text_wall"):
+        d = get_scene(name).desc.model_copy(update={"ambient": (0.0, 0.0, 0.0)})
+        direct = render_reference(ResolvedScene(d.model_copy(update={"transport": "direct_shadows"})),
+                                  0, 48, 27, target_noise_db=50)
+        path = render_reference(ResolvedScene(d.model_copy(update={"transport": "path", "path_max_depth": 2})),
+                                0, 48, 27, target_noise_db=50)
+        disp = DisplayTransform.from_reference(direct.image)
+        assert psnr(disp.encode(direct.image), disp.encode(path.image)) > 55, name
+
+
+def test_path_transport_with_cutouts_is_refused_clearly():
+    from scenes.resolved import ResolvedScene
+    s = ResolvedScene(get_scene("flowers").desc.model_copy(update={"transport": "path"}))
+    with pytest.raises(Exception, match="alpha cut-outs"):
         render_reference(s, 0, 8, 8)
