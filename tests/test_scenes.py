@@ -113,3 +113,16 @@ def test_camera_cut_resets_and_moves_pose():
     assert s2.is_cut(0) and s2.is_cut(3) and not s2.is_cut(2)
     np.testing.assert_allclose(s2.camera(4, 64, 64).position, [1, 1, 5])
     np.testing.assert_allclose(s2.camera(2, 64, 64).position, [0, 0, 5])
+
+
+def test_readme_scene_example_loads(tmp_path):
+    """The scene file the README shows a user is valid as written."""
+    import pathlib
+    import re
+    readme = (pathlib.Path(__file__).parent.parent / "README.md").read_text()
+    block = re.search(r"```toml\n(.*?)```", readme, re.S).group(1)
+    (tmp_path / "model.obj").write_text(OBJ)
+    (tmp_path / "my_model.toml").write_text(block)
+    s = load_scene_file(str(tmp_path / "my_model.toml"))
+    assert s.desc.frames == 60 and s.textures[1] is not None
+    assert set(s.desc.features()) >= {"direct_shadows", "texture", "moving_object", "moving_camera"}
