@@ -11,7 +11,7 @@ $(STAMP): pyproject.toml scripts/setup.sh
 setup: $(STAMP)
 
 study: $(STAMP)
-	$(PY) -m study agree --all
+	$(PY) -m study run --profile quick
 
 test: $(STAMP)
 	$(PY) -m pytest -q

@@ -1,0 +1,96 @@
+"""The thesis's test protocols, driving the raster and the techniques in lockstep.
+
+Static test (thesis 4.2.1): at one scene time, a 'sequence' technique (TAA) sees 16 frames with
+Halton jitter k = 0..15 and the last output is kept; a 'centre' technique (No AA, FXAA) sees the
+unjittered frame; a 'supersample' one (accumulation) its N jittered sub-frames.
+Ghosting test (thesis 4.2.2): frames t = 0..N-1 of an animated scene, jitter k = t, history reset
+at the first frame and at camera cuts; every frame is kept and judged against its own reference.
+Raster frames are rendered once per step and shared by every technique that needs them.
+"""
+from __future__ import annotations
+
+import statistics
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from tqdm import tqdm
+
+from display import DisplayTransform
+from raster import Rasterizer
+from scenes import ResolvedScene
+from scenes.jitter import TAA_PERIOD, halton_offset
+
+from .config import TechniqueConfig
+
+
+@dataclass(frozen=True)
+class Step:
+    t: int          # scene time (animation frame)
+    k: int          # jitter index of sequence techniques
+    keep: bool      # output judged
+    reset: bool     # history reset before this step
+
+
+def static_schedule(t: int, history: int) -> list[Step]:
+    return [Step(t, k, keep=(k == history - 1), reset=(k == 0)) for k in range(history)]
+
+
+def ghosting_schedule(scene: ResolvedScene, frames: int) -> list[Step]:
+    return [Step(t, t, keep=True, reset=scene.is_cut(t)) for t in range(frames)]
+
+
+def sampling_of(tech) -> str:
+    return getattr(tech, "sampling", "sequence")
+
+
+def run_schedule(scene: ResolvedScene, width: int, height: int, schedule: list[Step],
+                 configs: list[TechniqueConfig], displays: dict[int, DisplayTransform],
+                 desc: str = "", progress: bool = True) -> dict[str, dict]:
+    """Run techniques over a schedule. Returns label -> {images: {t: image}, output_space, ms}."""
+    techs = {c.label: c.make() for c in configs}
+    needs = set().union(*(t.needs for t in techs.values())) | {"color"}
+    out = {c.label: {"images": {}, "times": [], "output_space": getattr(techs[c.label], "output_space", "linear"),
+                     "nonfinite": 0} for c in configs}
+    far = scene.desc.camera.far
+    raster = Rasterizer(scene, width, height)
+    try:
+        for step in tqdm(schedule, desc=desc or scene.name, unit="frame", disable=not progress,
+                         leave=False, mininterval=1.0):
+            seq_frame = centre_frame = None
+            for label, tech in techs.items():
+                mode = sampling_of(tech)
+                if mode != "sequence" and not step.keep:
+                    continue
+                kwargs = {"far": far, "reset": step.reset}
+                if getattr(tech, "output_space", "linear") == "display":
+                    kwargs["display"] = displays[step.t]
+                if mode == "sequence":
+                    if seq_frame is None:
+                        jit = halton_offset(step.k, TAA_PERIOD)
+                        seq_frame = (raster.render(step.t, jit, tuple(needs)), jit)
+                    frame, jit = seq_frame
+                    t0 = time.perf_counter()
+                    img = tech.process(frame, jitter=jit, **kwargs)
+                elif mode == "centre":
+                    if centre_frame is None:
+                        centre_frame = raster.render(step.t, (0.0, 0.0), tuple(needs))
+                    t0 = time.perf_counter()
+                    img = tech.process(centre_frame, jitter=(0.0, 0.0), **kwargs)
+                elif mode == "supersample":
+                    n = int(tech.params.samples)
+                    subs = [raster.render(step.t, halton_offset(j, n), tuple(needs)) for j in range(n)]
+                    t0 = time.perf_counter()
+                    img = tech.process_samples(subs)
+                else:
+                    raise ValueError(f"technique {label!r} has unknown sampling {mode!r}")
+                out[label]["times"].append(time.perf_counter() - t0)
+                out[label]["nonfinite"] += int(getattr(tech, "last_nonfinite_count", 0))
+                if step.keep:
+                    out[label]["images"][step.t] = np.asarray(img, np.float32)
+    finally:
+        raster.close()
+    for label, r in out.items():
+        warm = r.pop("times")[2:] or [0.0]     # the first calls compile kernels
+        r["ms"] = 1000 * statistics.median(warm)
+    return out
