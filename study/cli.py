@@ -230,3 +230,30 @@ def run(profile, scene_list, tech_list, out_dir, no_agreement):
     click.echo(f"runs computed {study.stats['runs_computed']}, cached {study.stats['runs_cached']}; "
                f"metrics computed {study.stats['metrics_computed']}; references rendered "
                f"{study.stats['references_rendered']}; {summary['seconds']:.1f} s; artefacts in {out}/")
+
+
+@main.command()
+@click.option("--width", default=1600, show_default=True)
+@click.option("--height", default=900, show_default=True)
+@click.option("--repeats", default=7, show_default=True, help="Timed runs per technique (median).")
+@click.option("--technique", "tech_names", multiple=True, help="Only these techniques (repeatable).")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+def bench(width, height, repeats, tech_names, as_json):
+    """Time each technique per frame against its NumPy oracle and the bandwidth floor."""
+    if width < 8 or height < 8:
+        _fail(f"--width/--height must be >= 8, got {width}x{height}")
+    from study.bench import bench as run_bench
+    res = run_bench(width, height, repeats, list(tech_names) or None,
+                    log=(lambda m: None) if as_json else (lambda m: click.echo(m, err=True)))
+    if as_json:
+        click.echo(json.dumps(res))
+        return
+    click.echo(f"{width}x{height}, backend {res['backend']}, copy bandwidth {res['copy_bandwidth_gbs']:.2f} GB/s")
+    click.echo(f"{'technique':24s} {'Dr.Jit ms':>10s} {'e2e ms':>8s} {'NumPy ms':>10s} {'speed-up':>9s} "
+               f"{'floor ms':>9s} {'x floor':>8s}")
+    for name, t in res["techniques"].items():
+        ms, floor = t["ms"], res["bandwidth_floor_ms"][name]
+        npm = res["numpy_ms"].get(name)
+        click.echo(f"{name:24s} {ms:10.2f} {res['end_to_end_ms'][name]:8.2f} "
+                   f"{(f'{npm:10.1f}' if npm else '         –')} {(f'{npm / ms:8.1f}x' if npm else '        –')} "
+                   f"{floor:9.2f} {ms / floor:7.1f}x")

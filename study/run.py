@@ -26,8 +26,10 @@ from .config import PROFILES, Profile, TechniqueConfig, source_hash, stable_hash
 from .protocols import ghosting_schedule, run_schedule, static_schedule
 from .store import RunStore
 
-RASTER_CODE = ("raster/*.py", "raster/shaders/*", "shading/*.py", "scenes/*.py", "scenes/library/*.py",
-               "study/protocols.py")
+# Scene content (meshes, textures, description) is in the scene's own hash; the code listed here is
+# what turns a scene into frames: camera, jitter, animation, raster, shading, and the driver.
+RASTER_CODE = ("raster/*.py", "raster/shaders/*", "shading/*.py", "scenes/camera.py", "scenes/jitter.py",
+               "scenes/resolved.py", "study/protocols.py")
 METRIC_CODE = ("study/metrics.py", "display/*.py", "study/run.py")
 
 
