@@ -257,3 +257,52 @@ def bench(width, height, repeats, tech_names, as_json):
         click.echo(f"{name:24s} {ms:10.2f} {res['end_to_end_ms'][name]:8.2f} "
                    f"{(f'{npm:10.1f}' if npm else '         –')} {(f'{npm / ms:8.1f}x' if npm else '        –')} "
                    f"{floor:9.2f} {ms / floor:7.1f}x")
+
+
+@main.command()
+@click.argument("a")
+@click.argument("b")
+@click.option("--scenes", "scene_list", default="pipe,sphere_ghosting", show_default=True,
+              help="Comma-separated scenes.")
+@click.option("--profile", type=click.Choice(["quick", "full"]), default="quick", show_default=True)
+@click.option("--max-worse", "gates", multiple=True,
+              help="METRIC=THRESHOLD: exit 1 if B is worse than A by more than THRESHOLD on average "
+                   "(e.g. psnr=0.25, ssim=0.002, mse=1.0, flip_ldr=0.002). Repeatable.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+def ab(a, b, scene_list, profile, gates, as_json):
+    """Compare technique configuration B against A: paired differences with bootstrap intervals.
+
+    A and B are 'name' or 'Label=name:field=value,...', e.g.
+    taa-study ab taa_baseline "taa_baseline:sharpen=normalised" --max-worse psnr=0.25"""
+    from scenes import SceneError, get_scene
+    from study.ab import AB_METRICS, compare
+    from study.config import TechniqueConfig, available
+    try:
+        ca, cb = TechniqueConfig.parse(a), TechniqueConfig.parse(b)
+        scenes_ = [get_scene(s.strip()) for s in scene_list.split(",") if s.strip()]
+        ca.make(), cb.make()
+    except (SceneError, ValueError, KeyError, TypeError) as exc:
+        _fail(str(exc))
+    limits = {}
+    for g in gates:
+        m, eq, v = g.partition("=")
+        if not eq or m not in AB_METRICS:
+            _fail(f"--max-worse {g!r}: expected METRIC=THRESHOLD with METRIC in {', '.join(AB_METRICS)}")
+        try:
+            limits[m] = float(v)
+        except ValueError:
+            _fail(f"--max-worse {g!r}: threshold {v!r} is not a number")
+    res = compare(ca, cb, scenes_, profile, progress=not as_json)
+    failed = {m: res.worse_by(m) for m, lim in limits.items() if res.worse_by(m) > lim}
+    if as_json:
+        click.echo(json.dumps({**res.as_dict(), "gates": limits, "failed": failed}))
+    else:
+        click.echo(f"B = {res.b}  vs  A = {res.a}   (differences B - A, mean [95 % bootstrap CI], n pairs)")
+        for scene, per in list(res.per_scene.items()) + [("OVERALL", res.overall)]:
+            cells = [f"{m} {v['mean']:+.4g} [{v['ci'][0]:+.3g}, {v['ci'][1]:+.3g}] n={v['n']}" for m, v in per.items()]
+            click.echo(f"  {scene:18s} " + "; ".join(cells))
+        click.echo(f"  time: A {res.ms['a']:.2f} ms, B {res.ms['b']:.2f} ms per frame ({res.ms['diff']:+.2f} ms)")
+        for m, w in failed.items():
+            click.echo(f"  GATE FAILED: B is worse than A on {m} by {w:.4g} (> {limits[m]})")
+    if failed:
+        sys.exit(1)

@@ -55,7 +55,7 @@ class TechniqueConfig:
             except json.JSONDecodeError:
                 val = v
             overrides.append((k, tuple(val) if isinstance(val, list) else val))
-        return cls(label or name, name, tuple(overrides))
+        return cls(label or text, name, tuple(overrides))
 
 
 # The thesis's columns (No AA | FXAA | SMAA | Uncharted | Improved) plus an accumulation buffer.

@@ -86,3 +86,20 @@ def test_bad_technique_is_refused(env):
     r = CliRunner().invoke(main, ["run", "--scenes", str(env / "tiny.toml"), "--techniques",
                                   "taa_baseline:k_min=2"])
     assert r.exit_code == 2 and "k_min" in r.output
+
+
+def test_ab_reports_paired_differences_and_gates(env):
+    base = ["ab", "--scenes", str(env / "tiny.toml"), "--json"]
+    r = CliRunner().invoke(main, base + ["taa_baseline:sharpen=normalised", "taa_baseline:sharpen=xu",
+                                         "--max-worse", "psnr=0.0"], catch_exceptions=False)
+    out = json.loads(r.output)
+    assert out["overall"]["psnr"]["n"] == 6                      # 1 static frame + 5 ghosting frames
+    lo, hi = out["overall"]["psnr"]["ci"]
+    assert lo <= out["overall"]["psnr"]["mean"] <= hi
+    # Xu's unnormalised kernel over-sharpens: B is worse, and the gate says so with exit 1.
+    assert out["overall"]["psnr"]["mean"] < 0 and "psnr" in out["failed"] and r.exit_code == 1
+    r = CliRunner().invoke(main, base + ["taa_baseline:sharpen=xu", "taa_baseline:sharpen=normalised",
+                                         "--max-worse", "psnr=0.0"], catch_exceptions=False)
+    assert r.exit_code == 0 and json.loads(r.output)["failed"] == {}
+    r = CliRunner().invoke(main, base + ["taa_baseline", "taa_improved", "--max-worse", "psnr"])
+    assert r.exit_code == 2 and "METRIC=THRESHOLD" in r.output
