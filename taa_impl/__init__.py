@@ -1,24 +1,76 @@
 """AA techniques, vectorised with Dr.Jit. `make(name, **overrides)` builds one by registry name.
 
-Every technique: `needs` (buffers read), `params` (frozen, hashable), `reset()`,
-`process(frame, *, jitter, far, reset=False) -> (H, W, 3) float32`.
+Every technique: `needs` (buffers read), `params` (frozen, hashable), `sampling` and
+`output_space` (how a study drives it and what it returns; see taa_impl.base), `reset()`,
+`process(frame, *, jitter, far, reset=False, display=None) -> (H, W, 3) float32`; the
+accumulation buffer also has `process_samples(frames)`.
+
+Registry: 'noaa', 'accumulation', 'fxaa', 'taa_baseline', 'taa_improved', and named presets of the
+baseline TAA's extensions (spec section 7), each the baseline with some TAAParams switches on:
+  taa_ycocg          box='ycocg'
+  taa_variance       variance_clip_gamma=1.0
+  taa_catmull_rom    history_filter='catmull_rom'
+  taa_tonemap_blend  tonemap_blend=True
+  taa_reject         reject_depth=0.05, reject_id=True
+  taa_ycocg_variance box='ycocg', variance_clip_gamma=1.0, history_filter='catmull_rom',
+                     tonemap_blend=True
+A preset's switches are defaults: `make('taa_variance', variance_clip_gamma=1.5)` overrides one,
+and `make(preset, params=...)` uses the given parameters as they are.
 """
 from __future__ import annotations
 
 from typing import Callable
 
-from .base import FEEDBACK_PRESETS, SHARPEN_KERNELS, TAAParams, Technique
+from .base import (FEEDBACK_PRESETS, OUTPUT_SPACES, SAMPLING_MODES, SHARPEN_KERNELS, TAAParams,
+                   Technique)
 from .baseline import BaselineTAA
+from .fxaa import ENCODED, FXAA, FXAA_QUALITY_PRESETS, FXAAParams
 from .improved import ImprovedParams, ImprovedTAA
+from .simple import Accumulation, AccumulationParams, NoAA, NoAAParams
+
+
+class Preset:
+    """A registry entry: technique class `cls` with some parameter defaults, under its own name."""
+
+    def __init__(self, name: str, cls: type, **defaults):
+        self.name, self.cls, self.defaults = name, cls, dict(defaults)
+        self.needs = cls(**defaults).needs     # validates the defaults; switches can add buffers
+        self.sampling, self.output_space = cls.sampling, cls.output_space
+        self.Params = cls.Params
+
+    def __call__(self, params=None, **overrides) -> Technique:
+        kwargs = overrides if params is not None else {**self.defaults, **overrides}
+        tech = self.cls(params, **kwargs)
+        tech.name = self.name
+        return tech
+
+    def __repr__(self):
+        return f"Preset({self.name!r}, {self.cls.__name__}, {self.defaults})"
+
+
+PRESETS: dict[str, Preset] = {p.name: p for p in (
+    Preset("taa_ycocg", BaselineTAA, box="ycocg"),
+    Preset("taa_variance", BaselineTAA, variance_clip_gamma=1.0),
+    Preset("taa_catmull_rom", BaselineTAA, history_filter="catmull_rom"),
+    Preset("taa_tonemap_blend", BaselineTAA, tonemap_blend=True),
+    Preset("taa_reject", BaselineTAA, reject_depth=0.05, reject_id=True),
+    Preset("taa_ycocg_variance", BaselineTAA, box="ycocg", variance_clip_gamma=1.0,
+           history_filter="catmull_rom", tonemap_blend=True),
+)}
 
 TECHNIQUES: dict[str, Callable[..., Technique]] = {
+    NoAA.name: NoAA,
+    Accumulation.name: Accumulation,
+    FXAA.name: FXAA,
     BaselineTAA.name: BaselineTAA,
     ImprovedTAA.name: ImprovedTAA,
+    **PRESETS,
 }
 
 
 def make(name: str, **overrides) -> Technique:
-    """A fresh technique; overrides are parameter fields or `feedback='thesis'|'inside'`."""
+    """A fresh technique; overrides are parameter fields, `params=` (a whole params dataclass) or,
+    for the TAAs, `feedback='thesis'|'inside'`."""
     try:
         factory = TECHNIQUES[name]
     except KeyError:
@@ -26,5 +78,7 @@ def make(name: str, **overrides) -> Technique:
     return factory(**overrides)
 
 
-__all__ = ["TECHNIQUES", "make", "Technique", "TAAParams", "ImprovedParams", "BaselineTAA",
-           "ImprovedTAA", "FEEDBACK_PRESETS", "SHARPEN_KERNELS"]
+__all__ = ["TECHNIQUES", "PRESETS", "Preset", "make", "Technique", "TAAParams", "ImprovedParams",
+           "BaselineTAA", "ImprovedTAA", "NoAA", "NoAAParams", "Accumulation", "AccumulationParams",
+           "FXAA", "FXAAParams", "FXAA_QUALITY_PRESETS", "ENCODED", "FEEDBACK_PRESETS",
+           "SHARPEN_KERNELS", "SAMPLING_MODES", "OUTPUT_SPACES"]

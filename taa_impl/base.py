@@ -4,6 +4,27 @@ A technique declares the buffers it reads (`needs`), keeps its history explicitl
 reset it at a camera cut) and is a pure function of (its parameters, its history, the frame): the
 same inputs give the same output bit for bit. Parameters are a frozen dataclass so a study can hash
 them into a cache key.
+
+How a study drives a technique (class attributes, read by the driver):
+
+`sampling` -- which raster frames it is given:
+  'centre'      one frame rendered with zero jitter (samples at pixel centres), one `process` call
+                per output (No AA, FXAA). Stateless techniques.
+  'sequence'    frame k rendered with `scenes.jitter.halton_offset(k, 16)` (TAA_PERIOD), one
+                `process` call per frame, history carried between calls; reset at camera cuts
+                (`reset=True`) and on any resolution change (TAAs).
+  'supersample' `params.samples` sub-frames of the *same* scene time, sub-frame j rendered with
+                `halton_offset(j, params.samples)`, all passed at once to `process_samples(frames)`
+                (accumulation buffer / SSAA); `process` also accepts them one at a time.
+
+`output_space` -- what the returned (H, W, 3) float32 image is:
+  'linear'      linear HDR Rec.709 (the default); the driver applies the display transform
+                (`display.DisplayTransform.encode` / `to_8bit`) once, as for the reference.
+  'display'     already display-encoded: the technique was given the frame's DisplayTransform as
+                `process(..., display=dt)`, applied `dt.encode` itself (tone map + sRGB, floats in
+                [0, 1]) and worked on that (FXAA). The driver must *not* tone-map it again; 8 bits
+                is `np.round(img * 255)`, exactly what `DisplayTransform.to_8bit` does after encode.
+`process` takes `display=` for every technique; 'linear' techniques ignore it, 'display' ones need it.
 """
 from __future__ import annotations
 
@@ -43,6 +64,12 @@ def sharpen_weight(name: str) -> float:
     return w
 
 
+BOX_SPACES = ("minmax", "ycocg")
+HISTORY_FILTERS = ("bilinear", "catmull_rom", "catmull_rom_5")
+SAMPLING_MODES = ("centre", "sequence", "supersample")
+OUTPUT_SPACES = ("linear", "display")
+
+
 @dataclass(frozen=True)
 class TAAParams:
     """Parameters of the baseline TAA (spec §5). Defaults: thesis feedback preset, Xu's sharpen."""
@@ -52,6 +79,16 @@ class TAAParams:
     feedback_floor: float = 0.2      # lower bound of the luminance denominator (INSIDE)
     clip_eps: float = 1e-8           # INSIDE's FLT_EPS added to the clip box half-size
     sharpen: str = "xu"
+    # Extensions beyond the seeds (spec section 7); every default is "off" = the baseline above.
+    box: str = "minmax"                       # 'minmax': RGB box; 'ycocg': box and clip in YCoCg (Karis 2014)
+    variance_clip_gamma: float | None = None  # Salvi 2016: box = mu -/+ gamma*sigma over the 3x3
+    variance_intersect: bool = False          # True: intersect the variance box with the min/max box
+    history_filter: str = "bilinear"          # 'bilinear' | 'catmull_rom' (exact 4x4 = the 9-tap form)
+    #                                           | 'catmull_rom_5' (5-tap, corners dropped, renormalised)
+    tonemap_blend: bool = False               # Karis: blend in c / (1 + luma(c)) space, invert after
+    tonemap_luma: tuple[float, float, float] = (0.2126, 0.7152, 0.0722)   # luma of that tone map
+    reject_depth: float | None = None         # reject history if stored depth differs by > this (relative)
+    reject_id: bool = False                   # reject history if the stored object ID differs
 
     def __post_init__(self):
         if not (0.0 <= self.k_min <= self.k_max <= 1.0):
@@ -66,6 +103,30 @@ class TAAParams:
         object.__setattr__(self, "feedback_luma", tuple(float(v) for v in self.feedback_luma))
         if self.sharpen not in SHARPEN_KERNELS:
             raise ValueError(f"sharpen must be one of {sorted(SHARPEN_KERNELS)}")
+        if self.box not in BOX_SPACES:
+            raise ValueError(f"box must be one of {BOX_SPACES}, got {self.box!r}")
+        if self.variance_clip_gamma is not None:
+            g = float(self.variance_clip_gamma)
+            if not (math.isfinite(g) and g >= 0):
+                raise ValueError(f"variance_clip_gamma must be None or a finite value >= 0, got {g}")
+            object.__setattr__(self, "variance_clip_gamma", g)
+        if self.history_filter not in HISTORY_FILTERS:
+            raise ValueError(f"history_filter must be one of {HISTORY_FILTERS}, got {self.history_filter!r}")
+        if len(self.tonemap_luma) != 3:
+            raise ValueError("tonemap_luma needs 3 weights")
+        object.__setattr__(self, "tonemap_luma", tuple(float(v) for v in self.tonemap_luma))
+        if self.reject_depth is not None:
+            r = float(self.reject_depth)
+            if not (math.isfinite(r) and r >= 0):
+                raise ValueError(f"reject_depth must be None or a finite value >= 0, got {r}")
+            object.__setattr__(self, "reject_depth", r)
+        for flag in ("variance_intersect", "tonemap_blend", "reject_id"):
+            object.__setattr__(self, flag, bool(getattr(self, flag)))
+
+    @property
+    def rejects(self) -> bool:
+        """Whether any history rejection test is on."""
+        return self.reject_depth is not None or self.reject_id
 
 
 def build_params(cls: type, params: Any = None, feedback: str | None = None, **overrides) -> Any:
@@ -73,6 +134,8 @@ def build_params(cls: type, params: Any = None, feedback: str | None = None, **o
     k_min/k_max together are ambiguous and refused)."""
     p = params if params is not None else cls()
     if feedback is not None:
+        if not hasattr(p, "k_min"):
+            raise ValueError(f"a feedback preset applies to TAAs only, not to {cls.__name__}")
         if feedback not in FEEDBACK_PRESETS:
             raise ValueError(f"feedback preset must be one of {sorted(FEEDBACK_PRESETS)}")
         if "k_min" in overrides or "k_max" in overrides:
@@ -88,6 +151,8 @@ class Technique:
     name: ClassVar[str] = "technique"
     needs: ClassVar[frozenset[str]] = frozenset({"color"})
     Params: ClassVar[type] = TAAParams
+    sampling: ClassVar[str] = "centre"        # one of SAMPLING_MODES (module docstring)
+    output_space: ClassVar[str] = "linear"    # one of OUTPUT_SPACES (module docstring)
 
     def __init__(self, params=None, *, feedback: str | None = None, **overrides):
         self.params = build_params(self.Params, params, feedback, **overrides)
@@ -109,8 +174,14 @@ class Technique:
         raise NotImplementedError
 
     # -- per frame -----------------------------------------------------------------------------
-    def process(self, frame: dict, *, jitter, far: float, reset: bool = False) -> np.ndarray:
-        """One frame in, the displayed (H, W, 3) float32 image out; updates the history."""
+    def process(self, frame: dict, *, jitter, far: float, reset: bool = False,
+                display=None) -> np.ndarray:
+        """One frame in, the displayed (H, W, 3) float32 image out; updates the history.
+
+        `display` (a display.DisplayTransform) is required by output_space='display' techniques
+        and ignored by 'linear' ones."""
+        if self.output_space == "display" and display is None:
+            raise ValueError(f"{self.name} works on the display image: pass display=DisplayTransform")
         far = float(far)
         if not (math.isfinite(far) and far > 0):
             raise ValueError(f"far must be finite and > 0, got {far}")
@@ -128,8 +199,13 @@ class Technique:
             self._shape = (h, w)
         if reset:
             self.reset()
+        bufs = self._prepare(bufs, display)
         out = self._step(to_drjit(bufs), w, h, far)
         return from_drjit_color(out, h, w)
+
+    def _prepare(self, bufs: dict[str, np.ndarray], display) -> dict[str, np.ndarray]:
+        """NumPy-side preparation of the (validated, repaired) buffers; the default is none."""
+        return bufs
 
     def _step(self, bufs: dict, width: int, height: int, far: float):
         raise NotImplementedError

@@ -6,6 +6,27 @@ history would compound the kernel every frame (with Xu's 5/-1 kernel it diverges
 
 The current colour c is the raster's jittered sample as is (the spec's "un-jittered sample": we do
 not resample it; jitter only moves where the sample was taken).
+
+Extensions (spec section 7), each a TAAParams switch whose default is off (= the baseline above,
+bit for bit). They compose in this order, per pixel:
+ 1. velocity of the closest-depth 3x3 pixel (unchanged);
+ 2. box space: `box='ycocg'` converts the current colours to YCoCg (Karis 2014) and builds the box
+    there; the history is converted, clipped in YCoCg and converted back to RGB (YCoCg is linear,
+    so the blend is the same in either space; the clip is not);
+ 3. box shape: `variance_clip_gamma=g` replaces the min/max box by Salvi's mu -/+ g*sigma over the
+    3x3 (in the box space of 2); `variance_intersect=True` intersects it with the min/max box
+    instead (the variance box can reach beyond the colours present, e.g. below 0 next to one
+    bright pixel; the intersection never does). The intersection is never empty: mu lies in both;
+ 4. history fetch: `history_filter='catmull_rom'` (exact 4x4 Catmull-Rom, = the 9-tap shader form)
+    or 'catmull_rom_5' (5-tap approximation) instead of bilinear; their negative lobes are removed
+    by the clip of step 5, which puts the history inside the box of current colours;
+ 5. rejection: `reject_depth=r` / `reject_id=True` drop the history of a pixel (it takes the current
+    colour, as off-screen does) when the depth / object ID the history had at the reprojected
+    position differs from what the followed surface had last frame (see TAATechnique._rejection);
+ 6. clip toward the box centre (unchanged), feedback k from linear luminances (unchanged);
+ 7. blend: `tonemap_blend=True` blends in Karis's c / (1 + luma(c)) space and maps back
+    (implemented as the equivalent weight, kernels.karis_blend_weight); otherwise lerp(c, h, k);
+ 8. sharpen the output (unchanged; the history stays unsharpened).
 """
 from __future__ import annotations
 
@@ -18,26 +39,82 @@ from . import kernels as K
 from .base import TAAParams, Technique, from_drjit_color, from_drjit_scalar, sharpen_weight
 
 
-def resolve(params: TAAParams, grid: K.Grid, c, history, velocity, bmin, bmax):
+def fetch_history(params: TAAParams, grid: K.Grid, history, velocity):
+    """The history at each pixel's previous position with the configured filter, and `valid`."""
+    if params.history_filter == "bilinear":
+        return K.reproject(grid, history, velocity)
+    px, py, valid = K.previous_position(grid, velocity)
+    return K.catmull_rom(grid, history, px, py, five_tap=params.history_filter == "catmull_rom_5"), valid
+
+
+def resolve(params: TAAParams, grid: K.Grid, c, history, velocity, bmin, bmax, reject=None):
     """Steps 2, 4, 5: reproject, clip toward the box centre, blend with luminance feedback.
 
-    No history (first frame, reset) or an off-screen reprojection gives c for that pixel."""
+    No history (first frame, reset), an off-screen reprojection or a rejected pixel (`reject`, a
+    mask) gives c for that pixel. (bmin, bmax) are in YCoCg when params.box == 'ycocg'."""
     if history is None:
         return c, None
-    h, valid = K.reproject(grid, history, velocity)
-    h = K.clip_toward_centre(h, bmin, bmax, params.clip_eps)
+    h, valid = fetch_history(params, grid, history, velocity)
+    if reject is not None:
+        valid = valid & ~reject
+    if params.box == "ycocg":
+        h = K.ycocg_to_rgb(K.clip_toward_centre(K.rgb_to_ycocg(h), bmin, bmax, params.clip_eps))
+    else:
+        h = K.clip_toward_centre(h, bmin, bmax, params.clip_eps)
     k = K.feedback_weight(K.luminance(c, params.feedback_luma), K.luminance(h, params.feedback_luma),
                           params.k_min, params.k_max, params.feedback_floor)
+    if params.tonemap_blend:
+        k = K.karis_blend_weight(c, h, k, params.tonemap_luma)
     return dr.select(valid, K.lerp(c, h, k), c), valid
 
 
 class TAATechnique(Technique):
-    """Shared plumbing of the TAAs: colour history, a cached pixel grid, debug terms."""
+    """Shared plumbing of the TAAs: colour history, a cached pixel grid, debug terms, rejection."""
+
+    sampling = "sequence"
+
+    def __init__(self, params=None, *, feedback: str | None = None, **overrides):
+        super().__init__(params, feedback=feedback, **overrides)
+        extra = set()
+        if self.params.reject_depth is not None:
+            extra.add("prev_depth")
+        if self.params.reject_id:
+            extra.add("object_id")
+        self.needs = frozenset(type(self).needs | extra)  # this instance's buffers
 
     def _clear_history(self) -> None:
         self._history = None  # mi.Color3f: last unsharpened blend
         self._grid = None
         self._terms: dict = {}
+        self._prev_depth = None  # previous frame's depth buffer (kept only when rejecting by depth)
+        self._prev_ids = None    # previous frame's object IDs (kept only when rejecting by ID)
+
+    def _rejection(self, grid: K.Grid, b: dict, best_i, velocity):
+        """History rejection mask (True = drop the history), then keep this frame's buffers.
+
+        The surface followed at a pixel is the closest-depth 3x3 pixel whose velocity is used
+        (best_i). Last frame it had depth b['prev_depth'][best_i] and ID b['object_id'][best_i]; the
+        history at the reprojected position (nearest texel) was made of whatever the stored depth /
+        ID buffers show there. Depth: reject if |stored - expected| > reject_depth * expected.
+        ID: reject if they differ. None when nothing is tested or there is no stored frame."""
+        p = self.params
+        if not p.rejects:
+            return None
+        reject = None
+        if self._history is not None:
+            px, py, _ = K.previous_position(grid, velocity)
+            ni = K.nearest_index(grid, px, py)
+            reject = dr.zeros(mi.Bool, grid.n)
+            if p.reject_depth is not None and self._prev_depth is not None:
+                stored = dr.gather(mi.Float, self._prev_depth, ni)
+                expected = dr.gather(mi.Float, b["prev_depth"], best_i)
+                reject |= dr.abs(stored - expected) > p.reject_depth * dr.abs(expected)
+            if p.reject_id and self._prev_ids is not None:
+                reject |= dr.gather(mi.Int32, self._prev_ids, ni) != dr.gather(mi.Int32, b["object_id"], best_i)
+            dr.eval(reject)
+        self._prev_depth = b["depth"] if p.reject_depth is not None else None
+        self._prev_ids = b["object_id"] if p.reject_id else None
+        return reject
 
     def _grid_for(self, w: int, h: int) -> K.Grid:
         if self._grid is None or (self._grid.w, self._grid.h) != (w, h):
@@ -69,6 +146,9 @@ class TAATechnique(Technique):
 
 
 class BaselineTAA(TAATechnique):
+    """Spec section 5, plus the extension switches of TAAParams (module docstring). The debug terms
+    box_min / box_max / box_avg are in the box space (YCoCg when box='ycocg'; box_avg is mu with
+    a variance box)."""
     name = "taa_baseline"
     needs = frozenset({"color", "depth", "motion"})
     Params = TAAParams
@@ -77,13 +157,24 @@ class BaselineTAA(TAATechnique):
         p = self.params
         grid = self._grid_for(w, h)
         c = b["color"]
-        velocity = K.closest_velocity(grid, b["depth"], b["motion"])
-        bmin, bmax, bavg = K.neighbourhood(grid, c).averaged()
-        blend, valid = resolve(p, grid, c, self._history, velocity, bmin, bmax)
+        best_i = K.closest_index(grid, b["depth"])
+        velocity = dr.gather(mi.Vector2f, b["motion"], best_i)
+        reject = self._rejection(grid, b, best_i, velocity)
+        cs = K.rgb_to_ycocg(c) if p.box == "ycocg" else c      # the box space
+        bmin, bmax, bavg = K.neighbourhood(grid, cs).averaged()
+        if p.variance_clip_gamma is not None:
+            vmin, vmax, bavg = K.variance_box(grid, cs, p.variance_clip_gamma)
+            if p.variance_intersect:
+                bmin, bmax = dr.maximum(bmin, vmin), dr.minimum(bmax, vmax)
+            else:
+                bmin, bmax = vmin, vmax
+        blend, valid = resolve(p, grid, c, self._history, velocity, bmin, bmax, reject)
         dr.eval(blend)
         self._history = blend
         self._terms = {"velocity": velocity, "box_min": bmin, "box_max": bmax, "box_avg": bavg,
                        "history_valid": mi.Float(dr.select(valid, 1.0, 0.0)) if valid is not None
                        else dr.zeros(mi.Float, grid.n),
                        "blend": blend}
+        if reject is not None:
+            self._terms["history_rejected"] = mi.Float(dr.select(reject, 1.0, 0.0))
         return K.sharpen(grid, blend, sharpen_weight(p.sharpen))

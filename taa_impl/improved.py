@@ -15,6 +15,11 @@ Choices the thesis leaves open, made here:
   "luminance" of a one-channel image is its value; the history is clamped to the averaged
   3x3/cross box (the thesis: clamp instead of clip); no sharpen.
 - Sharpening, as in the baseline, applies to the displayed output only (history is unsharpened).
+
+Extensions: the resolve-stage switches of TAAParams (history_filter, tonemap_blend, reject_depth,
+reject_id) apply here exactly as in the baseline (the Sobel image's own TAA keeps its bilinear
+fetch and no rejection). The box switches (box='ycocg', variance_clip_gamma) are defined for the
+baseline's box only and are refused: the thesis's box is its own construction.
 """
 from __future__ import annotations
 
@@ -39,6 +44,9 @@ class ImprovedParams(TAAParams):
 
     def __post_init__(self):
         super().__post_init__()
+        if self.box != "minmax" or self.variance_clip_gamma is not None:
+            raise ValueError("box='ycocg' and variance_clip_gamma are baseline-TAA extensions; the "
+                             "improved TAA builds its own box (thesis eq. 4.11-4.12)")
         if not self.depth_threshold >= 0:
             raise ValueError("depth_threshold must be >= 0")
         object.__setattr__(self, "sobel_luma", tuple(float(v) for v in self.sobel_luma))
@@ -70,7 +78,9 @@ class ImprovedTAA(TAATechnique):
         c = b["color"]
         zn = b["depth"] / far            # normalised linear depth
         zp = b["prev_depth"] / far
-        velocity = K.closest_velocity(grid, b["depth"], b["motion"])
+        best_i = K.closest_index(grid, b["depth"])
+        velocity = dr.gather(mi.Vector2f, b["motion"], best_i)
+        reject = self._rejection(grid, b, best_i, velocity)
 
         # Sobel (runs first, thesis §4.3.3): g = clamp01(0.3u + 0.7l + d); sobel = sqrt(smoothstep).
         u = K.sobel(grid, K.luminance(b["albedo"], p.sobel_luma))
@@ -108,7 +118,7 @@ class ImprovedTAA(TAATechnique):
         cmin, cmax, cavg = K.neighbourhood(grid, c).mixed(aliased)
         clip_min, clip_max = K.lerp(c, cmin, aliased), K.lerp(c, cmax, aliased)
 
-        blend, valid = resolve(p, grid, c, self._history, velocity, clip_min, clip_max)
+        blend, valid = resolve(p, grid, c, self._history, velocity, clip_min, clip_max, reject)
         dr.eval(blend)
         self._history = blend
         self._terms = {
@@ -121,4 +131,6 @@ class ImprovedTAA(TAATechnique):
             else dr.zeros(mi.Float, grid.n),
             "blend": blend,
         }
+        if reject is not None:
+            self._terms["history_rejected"] = mi.Float(dr.select(reject, 1.0, 0.0))
         return K.sharpen(grid, blend, sharpen_weight(p.sharpen))

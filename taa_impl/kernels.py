@@ -103,8 +103,8 @@ def luminance(c, weights):
     return c.x * weights[0] + c.y * weights[1] + c.z * weights[2]
 
 
-def closest_velocity(grid: Grid, depth, motion):
-    """Motion vector of the 3x3 pixel with the smallest depth (spec §5 step 1)."""
+def closest_index(grid: Grid, depth):
+    """Flat index of the 3x3 pixel with the smallest depth (first strictly-closest tap wins)."""
     o0 = OFFSETS_3X3[0]
     best_d, best_i = grid.tap(depth, *o0), grid.index(*o0)
     for o in OFFSETS_3X3[1:]:
@@ -112,7 +112,12 @@ def closest_velocity(grid: Grid, depth, motion):
         closer = d < best_d
         best_d = dr.select(closer, d, best_d)
         best_i = dr.select(closer, grid.index(*o), best_i)
-    return dr.gather(mi.Vector2f, motion, best_i)
+    return best_i
+
+
+def closest_velocity(grid: Grid, depth, motion):
+    """Motion vector of the 3x3 pixel with the smallest depth (spec §5 step 1)."""
+    return dr.gather(mi.Vector2f, motion, closest_index(grid, depth))
 
 
 def reproject(grid: Grid, hist, velocity):
@@ -121,25 +126,148 @@ def reproject(grid: Grid, hist, velocity):
     Off-screen means the previous position lies outside [0, W] x [0, H]; inside, the border half
     pixel reads clamp-to-edge like a texture sampler.
     """
-    w, h = grid.w, grid.h
+    px, py, valid = previous_position(grid, velocity)
+    return bilinear(grid, hist, px, py), valid
+
+
+def previous_position(grid: Grid, velocity):
+    """(px, py, valid): where each pixel's centre was in the previous frame, in pixel units, and
+    whether that lies inside [0, W] x [0, H]."""
     px = mi.Float(grid.x) + 0.5 - velocity.x
     py = mi.Float(grid.y) + 0.5 - velocity.y
-    valid = (px >= 0) & (px <= w) & (py >= 0) & (py <= h)
-    # Clamp before floor/int conversion: huge velocities must not overflow Int32 (they are invalid
-    # anyway, and the clamp does not move any valid position).
-    u = dr.clip(px - 0.5, -1.0, float(w))
-    v = dr.clip(py - 0.5, -1.0, float(h))
+    valid = (px >= 0) & (px <= grid.w) & (py >= 0) & (py <= grid.h)
+    return px, py, valid
+
+
+def _texel_coords(grid: Grid, px, py):
+    """Integer texel (x0, y0) below-left of (px, py) and the fractions, texel centres at +0.5.
+
+    Clamped before the int conversion: huge positions must not overflow Int32 (clamp-to-edge reads
+    the same texels for any position beyond one texel outside the image)."""
+    u = dr.clip(px - 0.5, -1.0, float(grid.w))
+    v = dr.clip(py - 0.5, -1.0, float(grid.h))
     fu, fv = dr.floor(u), dr.floor(v)
-    tx, ty = u - fu, v - fv
-    x0, y0 = mi.Int32(fu), mi.Int32(fv)
+    return mi.Int32(fu), mi.Int32(fv), u - fu, v - fv
+
+
+def texel(grid: Grid, img, xi, yi):
+    """img at integer texel (xi, yi), clamp-to-edge."""
+    xc, yc = dr.clip(xi, 0, grid.w - 1), dr.clip(yi, 0, grid.h - 1)
+    return dr.gather(type(img), img, yc * grid.w + xc)
+
+
+def bilinear(grid: Grid, img, px, py):
+    """Bilinear sample of `img` at continuous position (px, py) in pixel units (texel centres at
+    +0.5), clamp-to-edge addressing, like a GPU linear sampler (but with exact float weights)."""
+    x0, y0, tx, ty = _texel_coords(grid, px, py)
+    return _bilinear_at(grid, img, x0, tx, y0, ty)
+
+
+def _bilinear_at(grid: Grid, img, x0, tx, y0, ty):
+    w, h = grid.w, grid.h
     x0c, x1c = dr.clip(x0, 0, w - 1), dr.clip(x0 + 1, 0, w - 1)
     y0c, y1c = dr.clip(y0, 0, h - 1), dr.clip(y0 + 1, 0, h - 1)
-    T = type(hist)
-    h00 = dr.gather(T, hist, y0c * w + x0c)
-    h10 = dr.gather(T, hist, y0c * w + x1c)
-    h01 = dr.gather(T, hist, y1c * w + x0c)
-    h11 = dr.gather(T, hist, y1c * w + x1c)
-    return lerp(lerp(h00, h10, tx), lerp(h01, h11, tx), ty), valid
+    T = type(img)
+    h00 = dr.gather(T, img, y0c * w + x0c)
+    h10 = dr.gather(T, img, y0c * w + x1c)
+    h01 = dr.gather(T, img, y1c * w + x0c)
+    h11 = dr.gather(T, img, y1c * w + x1c)
+    return lerp(lerp(h00, h10, tx), lerp(h01, h11, tx), ty)
+
+
+def nearest_index(grid: Grid, px, py):
+    """Flat index of the texel containing (px, py), clamped to the image."""
+    xi = mi.Int32(dr.floor(dr.clip(px, 0.0, float(grid.w))))
+    yi = mi.Int32(dr.floor(dr.clip(py, 0.0, float(grid.h))))
+    return dr.clip(yi, 0, grid.h - 1) * grid.w + dr.clip(xi, 0, grid.w - 1)
+
+
+def catmull_rom_weights(t):
+    """Catmull-Rom weights of the taps at -1, 0, +1, +2 for a fraction t in [0, 1)."""
+    t2 = t * t
+    t3 = t2 * t
+    return (0.5 * (2.0 * t2 - t - t3),
+            0.5 * (3.0 * t3 - 5.0 * t2 + 2.0),
+            0.5 * (4.0 * t2 + t - 3.0 * t3),
+            0.5 * (t3 - t2))
+
+
+def catmull_rom(grid: Grid, img, px, py, five_tap: bool = False):
+    """Bicubic Catmull-Rom sample of `img` at (px, py) (pixel units, clamp-to-edge).
+
+    five_tap=False: the exact separable 4x4 filter. It is what the usual "9-tap" shader form
+    computes (the two middle taps of each axis merged into one bilinear fetch, exact because
+    w1 + w2 > 0); with gathers we take the 16 texels directly.
+    five_tap=True: the 5-tap approximation (Jimenez 2016): the 4 corner taps of the 9-tap form are
+    dropped and the remaining weights renormalised.
+    The result can overshoot (negative lobes); the caller clips it by the neighbourhood box.
+    The taps are summed as deviations from texel (x0, y0) (the weights sum to 1, so this is the same
+    filter): a constant image is then reproduced exactly, and an integer position gives the texel.
+    """
+    x0, y0, tx, ty = _texel_coords(grid, px, py)
+    wx, wy = catmull_rom_weights(tx), catmull_rom_weights(ty)
+    ref = texel(grid, img, x0, y0)
+    if not five_tap:
+        out = None
+        for j in range(4):
+            row = None
+            for i in range(4):
+                v = (texel(grid, img, x0 + (i - 1), y0 + (j - 1)) - ref) * wx[i]
+                row = v if row is None else row + v
+            out = row * wy[j] if out is None else out + row * wy[j]
+        return ref + out
+    w12x, w12y = wx[1] + wx[2], wy[1] + wy[2]
+    fx, fy = wx[2] / w12x, wy[2] / w12y          # offset of the merged middle tap from x0 / y0
+    zero = dr.zeros(mi.Float, grid.n)
+    taps = ((_bilinear_at(grid, img, x0 - 1, zero, y0, fy), wx[0] * w12y),
+            (_bilinear_at(grid, img, x0, fx, y0 - 1, zero), w12x * wy[0]),
+            (_bilinear_at(grid, img, x0, fx, y0, fy), w12x * w12y),
+            (_bilinear_at(grid, img, x0 + 2, zero, y0, fy), wx[3] * w12y),
+            (_bilinear_at(grid, img, x0, fx, y0 + 2, zero), w12x * wy[3]))
+    total, wsum = (taps[0][0] - ref) * taps[0][1], taps[0][1]
+    for v, wgt in taps[1:]:
+        total, wsum = total + (v - ref) * wgt, wsum + wgt
+    return ref + total / wsum
+
+
+def rgb_to_ycocg(c):
+    """RGB -> YCoCg (Y = R/4 + G/2 + B/4, Co = R/2 - B/2, Cg = -R/4 + G/2 - B/4)."""
+    return mi.Color3f(0.25 * c.x + 0.5 * c.y + 0.25 * c.z,
+                      0.5 * c.x - 0.5 * c.z,
+                      0.5 * c.y - 0.25 * c.x - 0.25 * c.z)
+
+
+def ycocg_to_rgb(c):
+    """YCoCg -> RGB (R = Y + Co - Cg, G = Y + Cg, B = Y - Co - Cg), the exact inverse."""
+    return mi.Color3f(c.x + c.y - c.z, c.x + c.z, c.x - c.y - c.z)
+
+
+def variance_box(grid: Grid, img, gamma: float):
+    """Salvi's variance box over the 3x3: (mu - gamma sigma, mu + gamma sigma, mu), per channel.
+
+    The moments are taken of the deviations from the centre pixel (a shift that makes a constant
+    neighbourhood give sigma = 0 and mu = the constant exactly, and avoids the cancellation of
+    E[x^2] - E[x]^2 on large values); the variance is clamped at 0 before the square root."""
+    s1 = s2 = None
+    for o in OFFSETS_3X3:
+        d = grid.tap(img, *o) - img
+        s1 = d if s1 is None else s1 + d
+        s2 = d * d if s2 is None else s2 + d * d
+    m1 = s1 / 9.0
+    sigma = dr.sqrt(dr.maximum(s2 / 9.0 - m1 * m1, 0.0))
+    mu = img + m1
+    return mu - sigma * gamma, mu + sigma * gamma, mu
+
+
+def karis_blend_weight(c, h, k, weights):
+    """The history weight k' such that lerp(c, h, k') equals blending in the invertible tone-mapped
+    space T(x) = x / (1 + luma(x)) with weight k and mapping back with T^-1(y) = y / (1 - luma(y)):
+    k' = k w_h / ((1 - k) w_c + k w_h), w = 1 / (1 + luma). (Karis 2014.) Negative lumas count as 0.
+    Written as a weight so a pixel whose history equals its colour stays exactly that colour."""
+    wc = 1.0 / (1.0 + dr.maximum(luminance(c, weights), 0.0))
+    wh = 1.0 / (1.0 + dr.maximum(luminance(h, weights), 0.0))
+    kh = k * wh
+    return kh / ((1.0 - k) * wc + kh)
 
 
 def clip_toward_centre(hist, bmin, bmax, eps: float):

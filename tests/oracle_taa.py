@@ -4,6 +4,12 @@ Written for clarity, not speed, and independently of taa_impl's Dr.Jit kernels: 
 for the velocity search and the bilinear fetch, the sharpen and Sobel kernels applied as the
 matrices the thesis prints. float32 throughout so it agrees with the Dr.Jit version to ~1e-6.
 It expects finite inputs (the repair of non-finite pixels is tested separately).
+
+The extension switches of TAAParams (spec §7) are here too, each in its textbook form: YCoCg as a
+matrix, the variance as the two-pass population variance, Catmull-Rom as the cubic's matrix form
+over explicit texel weights (the 5-tap variant as the 4x4 weights without the corners,
+renormalised), Karis's blend literally in c / (1 + luma) space followed by the inverse map, and
+rejection by per-pixel lookups in the stored previous buffers.
 """
 from __future__ import annotations
 
@@ -50,9 +56,10 @@ def lum(c, weights):
     return c[..., 0] * F(weights[0]) + c[..., 1] * F(weights[1]) + c[..., 2] * F(weights[2])
 
 
-def closest_velocity(depth, motion):
+def closest_velocity(depth, motion, return_index=False):
     h, w = depth.shape
     vel = np.zeros((h, w, 2), F)
+    where = np.zeros((h, w, 2), int)
     for y in range(h):
         for x in range(w):
             best = None
@@ -61,7 +68,91 @@ def closest_velocity(depth, motion):
                 if best is None or depth[yy, xx] < depth[best]:
                     best = (yy, xx)
             vel[y, x] = motion[best]
-    return vel
+            where[y, x] = best
+    return (vel, where) if return_index else vel
+
+
+YCOCG = np.array([[0.25, 0.5, 0.25], [0.5, 0.0, -0.5], [-0.25, 0.5, -0.25]])
+YCOCG_INV = np.array([[1.0, 1.0, -1.0], [1.0, 0.0, 1.0], [1.0, -1.0, -1.0]])
+CATMULL_ROM = 0.5 * np.array([[-1, 3, -3, 1], [2, -5, 4, -1], [-1, 0, 1, 0], [0, 2, 0, 0]])
+
+
+def to_ycocg(c):
+    return np.einsum("ij,...j->...i", YCOCG, c.astype(np.float64)).astype(F)
+
+
+def from_ycocg(c):
+    return np.einsum("ij,...j->...i", YCOCG_INV, c.astype(np.float64)).astype(F)
+
+
+def variance_box(img, gamma):
+    """mu -/+ gamma sigma over the 3x3, population variance."""
+    taps = np.stack([tap(img, dx, dy) for dx, dy in NINE]).astype(np.float64)
+    mu = taps.mean(axis=0)
+    sigma = np.sqrt(((taps - mu) ** 2).mean(axis=0))
+    return (mu - gamma * sigma).astype(F), (mu + gamma * sigma).astype(F)
+
+
+def catmull_rom_weights(t):
+    """Weights of the taps at -1, 0, 1, 2: [t^3, t^2, t, 1] @ the Catmull-Rom basis matrix."""
+    return np.array([t ** 3, t ** 2, t, 1.0]) @ CATMULL_ROM
+
+
+def catmull_rom_history(hist, vel, five_tap=False):
+    """Catmull-Rom at (x + 0.5 - vx, y + 0.5 - vy) from explicit 4x4 texel weights (clamp to edge);
+    five_tap drops the 4 corner texels and renormalises. valid as for bilinear_history."""
+    h, w = hist.shape[:2]
+    out = np.zeros_like(hist)
+    valid = np.zeros((h, w), bool)
+    for y in range(h):
+        for x in range(w):
+            px = float(F(x + 0.5) - vel[y, x, 0])
+            py = float(F(y + 0.5) - vel[y, x, 1])
+            valid[y, x] = 0 <= px <= w and 0 <= py <= h
+            if not valid[y, x]:
+                continue
+            u, v = px - 0.5, py - 0.5
+            x0, y0 = int(np.floor(u)), int(np.floor(v))
+            wgt = np.outer(catmull_rom_weights(v - y0), catmull_rom_weights(u - x0))  # [j, i]
+            if five_tap:
+                wgt[0, 0] = wgt[0, 3] = wgt[3, 0] = wgt[3, 3] = 0.0
+                wgt /= wgt.sum()
+            acc = np.zeros(hist.shape[2:])
+            for j in range(4):
+                for i in range(4):
+                    yy = min(max(y0 + j - 1, 0), h - 1)
+                    xx = min(max(x0 + i - 1, 0), w - 1)
+                    acc += wgt[j, i] * hist[yy, xx]
+            out[y, x] = acc
+    return out.astype(F), valid
+
+
+def tonemap_blend(c, h, k, weights):
+    """Karis: T(x) = x / (1 + luma), blend there, T^-1(y) = y / (1 - luma(y))."""
+    def luma(x):
+        return np.maximum(lum(x.astype(np.float64), weights), 0.0)[..., None]
+    tc, th = c / (1.0 + luma(c)), h / (1.0 + luma(h))
+    t = tc + k * (th - tc)
+    return (t / (1.0 - luma(t))).astype(F)
+
+
+def rejection(params, frame, where, vel, prev_depth, prev_ids):
+    """True where the history is rejected (see taa_impl.baseline.TAATechnique._rejection)."""
+    h, w = where.shape[:2]
+    out = np.zeros((h, w), bool)
+    for y in range(h):
+        for x in range(w):
+            px = float(F(x + 0.5) - vel[y, x, 0])
+            py = float(F(y + 0.5) - vel[y, x, 1])
+            xn = min(max(int(np.floor(min(max(px, 0.0), w))), 0), w - 1)
+            yn = min(max(int(np.floor(min(max(py, 0.0), h))), 0), h - 1)
+            by, bx = where[y, x]
+            if params.reject_depth is not None:
+                expected = float(frame["prev_depth"][by, bx])
+                out[y, x] |= abs(float(prev_depth[yn, xn]) - expected) > params.reject_depth * abs(expected)
+            if params.reject_id:
+                out[y, x] |= prev_ids[yn, xn] != frame["object_id"][by, bx]
+    return out
 
 
 def bilinear_history(hist, vel):
@@ -115,6 +206,8 @@ class OracleTAA:
         self.p, self.improved = params, improved
         self.history = None
         self.sobel_history = None
+        self.prev_depth = self.prev_ids = None
+        self.rejected = None
         self.terms = {}
 
     def process(self, frame, far, reset=False):
@@ -122,22 +215,49 @@ class OracleTAA:
         c = frame["color"].astype(F)
         if reset or (self.history is not None and self.history.shape != c.shape):
             self.history = self.sobel_history = None
-        vel = closest_velocity(frame["depth"].astype(F), frame["motion"].astype(F))
-        lo3, hi3, avg3 = min_max_avg(c, NINE)
-        lox, hix, avgx = min_max_avg(c, CROSS)
+            self.prev_depth = self.prev_ids = None
+        vel, where = closest_velocity(frame["depth"].astype(F), frame["motion"].astype(F),
+                                      return_index=True)
+        ycocg = getattr(p, "box", "minmax") == "ycocg"
+        cs = to_ycocg(c) if ycocg else c
+        lo3, hi3, avg3 = min_max_avg(cs, NINE)
+        lox, hix, avgx = min_max_avg(cs, CROSS)
         if self.improved:
             a = self._aliased_value(frame, F(far), vel)[..., None]
             cmin, cmax = mix(lox, lo3, a), mix(hix, hi3, a)
             bmin, bmax = mix(c, cmin, a), mix(c, cmax, a)
         else:
             bmin, bmax = (lo3 + lox) / F(2), (hi3 + hix) / F(2)
+            if p.variance_clip_gamma is not None:
+                vmin, vmax = variance_box(cs, p.variance_clip_gamma)
+                if p.variance_intersect:
+                    bmin, bmax = np.maximum(bmin, vmin), np.minimum(bmax, vmax)
+                else:
+                    bmin, bmax = vmin, vmax
+        self.rejected = None   # mask of rejected pixels, when a rejection test ran
         if self.history is None:
             blend = c
         else:
-            h, valid = bilinear_history(self.history, vel)
-            h = clip_toward_centre(h, bmin, bmax, p.clip_eps)
+            if p.history_filter == "bilinear":
+                h, valid = bilinear_history(self.history, vel)
+            else:
+                h, valid = catmull_rom_history(self.history, vel, p.history_filter == "catmull_rom_5")
+            if p.reject_depth is not None or p.reject_id:
+                rej = rejection(p, frame, where, vel, self.prev_depth, self.prev_ids)
+                self.rejected = rej
+                valid = valid & ~rej
+            if ycocg:
+                h = from_ycocg(clip_toward_centre(to_ycocg(h), bmin, bmax, p.clip_eps))
+            else:
+                h = clip_toward_centre(h, bmin, bmax, p.clip_eps)
             k = feedback(lum(c, p.feedback_luma), lum(h, p.feedback_luma), p)[..., None]
-            blend = np.where(valid[..., None], c + k * (h - c), c)
+            if p.tonemap_blend:
+                mixed = tonemap_blend(c, h, k, p.tonemap_luma)
+            else:
+                mixed = c + k * (h - c)
+            blend = np.where(valid[..., None], mixed, c)
+        self.prev_depth = frame["depth"].astype(F) if p.reject_depth is not None else None
+        self.prev_ids = frame["object_id"].copy() if p.reject_id else None
         self.history = blend.astype(F)
         return np.maximum(convolve3x3(self.history, SHARPEN[p.sharpen]), 0).astype(F)
 

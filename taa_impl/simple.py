@@ -1,0 +1,100 @@
+"""The two reference points of the study (spec section 7): No AA and the accumulation buffer.
+
+- No AA (`noaa`): the single sample at each pixel centre, returned as is (sampling 'centre').
+- Accumulation buffer / SSAA (`accumulation`, Haeberli & Akeley 1990): the mean of N jittered
+  sub-frames of the same scene time (sampling 'supersample'); the thesis's ground truth is N = 128.
+  Sums are kept in float64 and divided once: the mean of N equal float32 values is that value
+  exactly, and for N <= 2**29 samples no precision is lost to the running sum.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+import backend  # noqa: F401
+from backend import dr, mi
+
+from .base import Technique, from_drjit_color
+
+
+@dataclass(frozen=True)
+class NoAAParams:
+    """No AA has no parameters."""
+
+
+class NoAA(Technique):
+    name = "noaa"
+    needs = frozenset({"color"})
+    Params = NoAAParams
+    sampling = "centre"
+
+    def _clear_history(self) -> None:
+        pass
+
+    def _step(self, b: dict, w: int, h: int, far: float):
+        return b["color"]
+
+
+@dataclass(frozen=True)
+class AccumulationParams:
+    samples: int = 128   # sub-frames per output (the thesis's ground truth: 128); any N >= 1
+
+    def __post_init__(self):
+        if isinstance(self.samples, bool) or int(self.samples) != self.samples or self.samples < 1:
+            raise ValueError(f"samples must be an integer >= 1, got {self.samples!r}")
+        object.__setattr__(self, "samples", int(self.samples))
+
+
+class Accumulation(Technique):
+    """Mean of jittered sub-frames. `process_samples(frames)` gives the mean of exactly those frames;
+    `process(frame)` adds one frame to a running mean and returns it (until `reset()`, a
+    `reset=True` call or a resolution change, which start a new mean). `count` is the number of
+    frames in the current mean. The driver renders sub-frame j with halton_offset(j, samples)."""
+
+    name = "accumulation"
+    needs = frozenset({"color"})
+    Params = AccumulationParams
+    sampling = "supersample"
+
+    def _clear_history(self) -> None:
+        self._sum = None   # mi.Color3d
+        self.count = 0
+
+    def _step(self, b: dict, w: int, h: int, far: float):
+        c = mi.Color3d(b["color"])
+        self._sum = c if self._sum is None else self._sum + c
+        dr.eval(self._sum)
+        self.count += 1
+        return mi.Color3f(self._sum / float(self.count))
+
+    def process_samples(self, frames, *, far: float = 1.0, jitters=None) -> np.ndarray:
+        """The (H, W, 3) float32 mean of the frames' colours (all of one resolution). The running
+        mean is restarted, and afterwards holds these frames. `jitters` (optional, one per frame)
+        is informational; `far` only matters for repairing a non-finite depth, which is not read.
+        `last_nonfinite_count` is the total of repaired pixels over all the frames."""
+        frames = list(frames)
+        if not frames:
+            raise ValueError("process_samples needs at least one frame")
+        shapes = {np.shape(f["color"])[:2] for f in frames}
+        if len(shapes) != 1:
+            raise ValueError(f"sub-frames of one output must share a resolution, got {sorted(shapes)}")
+        if jitters is not None and len(jitters) != len(frames):
+            raise ValueError("need one jitter per frame")
+        self.reset()
+        total, out = 0, None
+        for i, fr in enumerate(frames):
+            out = self.process(fr, jitter=jitters[i] if jitters is not None else (0.0, 0.0), far=far)
+            total += self.last_nonfinite_count
+        self.last_nonfinite_count = total
+        return out
+
+    @property
+    def mean(self) -> np.ndarray | None:
+        """The current running mean as NumPy, or None after a reset."""
+        if self._sum is None:
+            return None
+        return from_drjit_color(mi.Color3f(self._sum / float(self.count)), *self._shape)
+
+
+__all__ = ["NoAA", "NoAAParams", "Accumulation", "AccumulationParams"]
