@@ -57,18 +57,19 @@ def lum(c, weights):
 
 
 def closest_velocity(depth, motion, return_index=False):
+    """Motion of the 3x3 neighbour with the smallest depth; ties go to the first in NINE order."""
     h, w = depth.shape
-    vel = np.zeros((h, w, 2), F)
-    where = np.zeros((h, w, 2), int)
-    for y in range(h):
-        for x in range(w):
-            best = None
-            for dx, dy in NINE:
-                xx, yy = min(max(x + dx, 0), w - 1), min(max(y + dy, 0), h - 1)
-                if best is None or depth[yy, xx] < depth[best]:
-                    best = (yy, xx)
-            vel[y, x] = motion[best]
-            where[y, x] = best
+    ys, xs = np.indices((h, w))
+    best_y, best_x = None, None
+    for dx, dy in NINE:
+        yy, xx = np.clip(ys + dy, 0, h - 1), np.clip(xs + dx, 0, w - 1)
+        if best_y is None:
+            best_y, best_x = yy, xx
+            continue
+        closer = depth[yy, xx] < depth[best_y, best_x]
+        best_y, best_x = np.where(closer, yy, best_y), np.where(closer, xx, best_x)
+    vel = motion[best_y, best_x].astype(F)
+    where = np.stack([best_y, best_x], -1)
     return (vel, where) if return_index else vel
 
 
@@ -158,24 +159,19 @@ def rejection(params, frame, where, vel, prev_depth, prev_ids):
 def bilinear_history(hist, vel):
     """History at (x + 0.5 - vx, y + 0.5 - vy); valid = inside [0, W] x [0, H]."""
     h, w = hist.shape[:2]
-    out = np.zeros_like(hist)
-    valid = np.zeros((h, w), bool)
-    for y in range(h):
-        for x in range(w):
-            px = F(x + 0.5) - vel[y, x, 0]
-            py = F(y + 0.5) - vel[y, x, 1]
-            valid[y, x] = 0 <= px <= w and 0 <= py <= h
-            if not valid[y, x]:
-                continue
-            u, v = px - F(0.5), py - F(0.5)
-            x0, y0 = int(np.floor(u)), int(np.floor(v))
-            tx, ty = u - F(x0), v - F(y0)
+    ys, xs = np.indices((h, w))
+    px = (xs + F(0.5)).astype(F) - vel[..., 0]
+    py = (ys + F(0.5)).astype(F) - vel[..., 1]
+    valid = (px >= 0) & (px <= w) & (py >= 0) & (py <= h)
+    u, v = np.where(valid, px, F(0.5)) - F(0.5), np.where(valid, py, F(0.5)) - F(0.5)
+    x0, y0 = np.floor(u).astype(int), np.floor(v).astype(int)
+    tx, ty = (u - x0.astype(F))[..., None], (v - y0.astype(F))[..., None]
 
-            def at(xx, yy):
-                return hist[min(max(yy, 0), h - 1), min(max(xx, 0), w - 1)]
-            top = at(x0, y0) * (F(1) - tx) + at(x0 + 1, y0) * tx
-            bottom = at(x0, y0 + 1) * (F(1) - tx) + at(x0 + 1, y0 + 1) * tx
-            out[y, x] = top * (F(1) - ty) + bottom * ty
+    def at(xx, yy):
+        return hist[np.clip(yy, 0, h - 1), np.clip(xx, 0, w - 1)]
+    top = at(x0, y0) * (F(1) - tx) + at(x0 + 1, y0) * tx
+    bottom = at(x0, y0 + 1) * (F(1) - tx) + at(x0 + 1, y0 + 1) * tx
+    out = np.where(valid[..., None], top * (F(1) - ty) + bottom * ty, F(0)).astype(hist.dtype)
     return out, valid
 
 
