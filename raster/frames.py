@@ -16,8 +16,6 @@ Buffers (row-major (H, W, ...), origin top-left):
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from backend import dr, mi
@@ -51,15 +49,6 @@ def _direction_position(cam: CameraState, d: mi.Vector3f) -> mi.Point2f:
     return mi.Point2f((x / -z / tx + 1) * 0.5 * cam.width, (1 - y / -z / ty) * 0.5 * cam.height)
 
 
-@dataclass
-class _Hit:
-    valid: mi.Bool
-    face: mi.UInt32
-    b1: mi.Float
-    b2: mi.Float
-    idx: tuple  # vertex indices i0, i1, i2
-
-
 def _gather3(arr: mi.Float, i) -> mi.Vector3f:
     return dr.gather(mi.Vector3f, arr, i)
 
@@ -87,36 +76,25 @@ class Rasterizer:
         return mi.Float(np.concatenate([self.scene.world_vertices(i, t - 1).astype(np.float32)
                                         for i in range(len(self.scene.meshes))]).ravel())
 
-    def render(self, t: int, jitter=(0.0, 0.0), buffers=("color",)) -> dict[str, np.ndarray]:
-        unknown = set(buffers) - set(BUFFERS)
-        if unknown:
-            raise RasterError(f"unknown buffer(s) {sorted(unknown)}; available: {BUFFERS}")
-        W, H = self.width, self.height
-        cam = self.scene.camera(t, W, H)
-        obj_np, prim_np = self.vis.render(self.scene, t, cam.view(), cam.projection(jitter))
-        geo = self.geometry(t)
-        n_obj = geo.n_objects
-        if obj_np.max() > n_obj:
-            raise RasterError(f"visibility pass returned object id {obj_np.max()} > {n_obj}")
-
-        # Camera ray through each pixel's jittered sample.
-        idx = dr.arange(mi.UInt32, W * H)
+    @staticmethod
+    def _reconstruct(geo, cam: CameraState, idx: mi.UInt32, obj_ids: np.ndarray, prims: np.ndarray, jitter):
+        """Rebuild the surface each pixel's sample hit: the camera ray through the jittered sample
+        intersected (Moller-Trumbore) with the triangle the visibility pass found there.
+        `idx` are pixel indices y*W + x; obj_ids/prims hold their ids."""
+        W, H = cam.width, cam.height
         sx = mi.Float(idx % W) + 0.5 + float(jitter[0])
         sy = mi.Float(idx // W) + 0.5 + float(jitter[1])
         tx, ty = cam.tan_half
-        d_cam = ((2 * sx / W - 1) * tx, (1 - 2 * sy / H) * ty)
-        ray_d = _vec(cam.to_world, 0) * d_cam[0] + _vec(cam.to_world, 1) * d_cam[1] - _vec(cam.to_world, 2)
-        eye = cam.position
-        ray_o = mi.Point3f(*(float(c) for c in eye))
-
-        obj = mi.UInt32(obj_np.ravel())
+        ray_d = (_vec(cam.to_world, 0) * ((2 * sx / W - 1) * tx) + _vec(cam.to_world, 1) * ((1 - 2 * sy / H) * ty)
+                 - _vec(cam.to_world, 2))
+        ray_o = mi.Point3f(*(float(c) for c in cam.position))
+        obj = mi.UInt32(np.ascontiguousarray(obj_ids, np.uint32))
         valid = obj > 0
         face_off = mi.UInt32(geo.face_offset.astype(np.uint32))
-        face = dr.gather(mi.UInt32, face_off, dr.maximum(obj, 1) - 1, valid) + mi.UInt32(prim_np.ravel())
+        face = (dr.gather(mi.UInt32, face_off, dr.maximum(obj, 1) - 1, valid)
+                + mi.UInt32(np.ascontiguousarray(prims, np.uint32)))
         i0, i1, i2 = (dr.gather(mi.UInt32, geo.faces, face * 3 + k, valid) for k in range(3))
         v0, v1, v2 = (_gather3(geo.positions, i) for i in (i0, i1, i2))
-
-        # Moller-Trumbore: barycentrics of the sample on the rasterised triangle.
         e1, e2 = v1 - v0, v2 - v0
         pvec = dr.cross(ray_d, e2)
         det = dr.dot(e1, pvec)
@@ -135,7 +113,56 @@ class Rasterizer:
         n_sh = dr.select(smooth, n_interp, n_geo)
         uv = (dr.gather(mi.Point2f, geo.uvs, i0, valid) * b0 + dr.gather(mi.Point2f, geo.uvs, i1, valid) * b1
               + dr.gather(mi.Point2f, geo.uvs, i2, valid) * b2)
-        surf = Surface(obj=obj, p=p, n_geo=n_geo, n_sh=n_sh, uv=uv)
+        return ray_d, Surface(obj=obj, p=p, n_geo=n_geo, n_sh=n_sh, uv=uv), (i0, i1, i2, b0, b1, b2)
+
+    def supersample(self, t: int, mask: np.ndarray, offsets) -> tuple[np.ndarray, dict]:
+        """Mean colour of extra samples at `offsets` (pixels), shaded only where `mask` is set.
+
+        Every visibility pass covers the frame (it is cheap and writes ids only); reconstruction
+        and shading run on the masked pixels alone (fragment culling). Returns the (H, W, 3) image
+        (0 outside the mask) and counts: samples shaded, objects drawn vs needed (mesh culling)."""
+        W, H = self.width, self.height
+        mask = np.asarray(mask, bool)
+        if mask.shape != (H, W):
+            raise RasterError(f"supersample mask has shape {mask.shape}, expected {(H, W)}")
+        sel = np.flatnonzero(mask)
+        out = np.zeros((H * W, 3), np.float64)
+        needed: set[int] = set()
+        if len(sel):
+            cam = self.scene.camera(t, W, H)
+            geo = self.geometry(t)
+            idx = mi.UInt32(sel.astype(np.uint32))
+            for jit in offsets:
+                obj_np, prim_np = self.vis.render(self.scene, t, cam.view(), cam.projection(jit))
+                o, pr = obj_np.ravel()[sel], prim_np.ravel()[sel]
+                needed.update(int(v) for v in np.unique(o) if v > 0)
+                _, surf, _ = self._reconstruct(geo, cam, idx, o, pr, jit)
+                col = shade(geo, surf, cam.position, surf.obj > 0)
+                out[sel] += np.stack([np.asarray(col[k]) for k in range(3)], -1)
+            out[sel] /= len(offsets)
+        stats = {"samples_shaded": int(len(sel) * len(offsets)), "pixels": int(len(sel)),
+                 "objects_needed": len(needed), "objects_total": len(self.scene.meshes)}
+        return out.reshape(H, W, 3).astype(np.float32), stats
+
+    def render(self, t: int, jitter=(0.0, 0.0), buffers=("color",)) -> dict[str, np.ndarray]:
+        unknown = set(buffers) - set(BUFFERS)
+        if unknown:
+            raise RasterError(f"unknown buffer(s) {sorted(unknown)}; available: {BUFFERS}")
+        W, H = self.width, self.height
+        cam = self.scene.camera(t, W, H)
+        obj_np, prim_np = self.vis.render(self.scene, t, cam.view(), cam.projection(jitter))
+        geo = self.geometry(t)
+        n_obj = geo.n_objects
+        if obj_np.max() > n_obj:
+            raise RasterError(f"visibility pass returned object id {obj_np.max()} > {n_obj}")
+
+        idx = dr.arange(mi.UInt32, W * H)
+        ray_d, surf, (i0, i1, i2, b0, b1, b2) = self._reconstruct(geo, cam, idx, obj_np.ravel(), prim_np.ravel(),
+                                                                 jitter)
+        obj, p, n_geo, n_sh, uv = surf.obj, surf.p, surf.n_geo, surf.n_sh, surf.uv
+        valid = obj > 0
+        eye = cam.position
+        ray_o = mi.Point3f(*(float(c) for c in eye))
 
         out: dict[str, np.ndarray] = {}
 

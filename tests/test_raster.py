@@ -161,3 +161,22 @@ def test_unknown_buffer_is_refused():
         assert out["object_id"].dtype == np.int32 and out["color"].dtype == np.float32
     finally:
         r.close()
+
+
+def test_supersample_shades_only_masked_pixels_and_equals_the_mean_of_full_frames():
+    from scenes import get_scene
+    from scenes.jitter import halton_offsets
+    scene = get_scene("atrium")
+    r = Rasterizer(scene, 40, 24)
+    try:
+        mask = np.zeros((24, 40), bool)
+        mask[5:12, 10:30] = True
+        offs = halton_offsets(8)
+        ss, stats = r.supersample(0, mask, offs)
+        full = np.mean([r.render(0, o, ("color",))["color"] for o in offs], axis=0)
+    finally:
+        r.close()
+    np.testing.assert_allclose(ss[mask], full[mask], atol=1e-6)
+    assert np.all(ss[~mask] == 0)
+    assert stats["samples_shaded"] == mask.sum() * 8 and stats["pixels"] == mask.sum()
+    assert 0 < stats["objects_needed"] <= stats["objects_total"]
