@@ -19,7 +19,7 @@ from tqdm import tqdm
 from display import DisplayTransform
 from raster import Rasterizer
 from scenes import ResolvedScene
-from scenes.jitter import TAA_PERIOD, halton_offset
+from scenes.jitter import TAA_PERIOD, halton_offset, halton_offsets
 
 from .config import TechniqueConfig
 
@@ -51,7 +51,7 @@ def run_schedule(scene: ResolvedScene, width: int, height: int, schedule: list[S
     techs = {c.label: c.make() for c in configs}
     needs = set().union(*(t.needs for t in techs.values())) | {"color"}
     out = {c.label: {"images": {}, "times": [], "output_space": getattr(techs[c.label], "output_space", "linear"),
-                     "nonfinite": 0} for c in configs}
+                     "nonfinite": 0, "stats": {}} for c in configs}
     far = scene.desc.camera.far
     raster = Rasterizer(scene, width, height)
     try:
@@ -65,13 +65,29 @@ def run_schedule(scene: ResolvedScene, width: int, height: int, schedule: list[S
                 kwargs = {"far": far, "reset": step.reset}
                 if getattr(tech, "output_space", "linear") == "display":
                     kwargs["display"] = displays[step.t]
+                if getattr(tech, "needs_cameras", False):   # e.g. motion from depth and camera only
+                    kwargs["cameras"] = (scene.camera(step.t, width, height),
+                                         scene.camera(step.t - 1, width, height))
                 if mode == "sequence":
                     if seq_frame is None:
                         jit = halton_offset(step.k, TAA_PERIOD)
                         seq_frame = (raster.render(step.t, jit, tuple(needs)), jit)
                     frame, jit = seq_frame
                     t0 = time.perf_counter()
-                    img = tech.process(frame, jitter=jit, **kwargs)
+                    if getattr(tech, "supersampling", False):
+                        # Sparse supersampling: the technique marks pixels its history cannot
+                        # serve; only those get extra samples (timed as raster work, not here).
+                        mask = tech.invalid_mask(frame, far=far) if not step.reset else \
+                            np.ones(frame["color"].shape[:2], bool)
+                        t_mask = time.perf_counter() - t0
+                        n = int(getattr(tech.params, "samples", 8))
+                        ss, ss_stats = raster.supersample(step.t, mask, halton_offsets(n))
+                        t0 = time.perf_counter() - t_mask
+                        img = tech.process(frame, jitter=jit, supersampled=ss, mask=mask, **kwargs)
+                        if step.keep:
+                            out[label]["stats"][step.t] = {**getattr(tech, "last_stats", {}), **ss_stats}
+                    else:
+                        img = tech.process(frame, jitter=jit, **kwargs)
                 elif mode == "centre":
                     if centre_frame is None:
                         centre_frame = raster.render(step.t, (0.0, 0.0), tuple(needs))

@@ -107,7 +107,8 @@ class Study:
             for c in missing:
                 r = fresh[c.label]
                 meta = {"label": c.label, "technique": c.name, "overrides": list(c.overrides),
-                        "output_space": r["output_space"], "ms": r["ms"], "nonfinite": r["nonfinite"]}
+                        "output_space": r["output_space"], "ms": r["ms"], "nonfinite": r["nonfinite"],
+                        "stats": {str(t): v for t, v in r["stats"].items()}}
                 self.store.save(folders[c.label], keys[c.label], r["images"], meta)
                 runs[c.label] = {"meta": {**meta, "frames": kept}, "images": r["images"]}
                 self.stats["runs_computed"] += 1
