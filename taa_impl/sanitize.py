@@ -62,6 +62,11 @@ def check_and_repair(frame: dict, needs, shape: tuple[int, int], far: float) -> 
         if key not in out:
             continue
         a = out[key]
+        # Fast path: NaN and +-Inf make the float64 sum non-finite, so a finite sum proves a clean
+        # buffer in one pass (an overflowing sum only sends us to the exact check).
+        if np.isfinite(np.sum(a, dtype=np.float64)):
+            counts[key] = 0
+            continue
         bad = _bad_pixels(a)
         counts[key] = n = int(bad.sum())
         if n == 0:
