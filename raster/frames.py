@@ -140,7 +140,7 @@ class Rasterizer:
                 col = shade(geo, surf, cam.position, surf.obj > 0)
                 out[sel] += np.stack([np.asarray(col[k]) for k in range(3)], -1)
             out[sel] /= len(offsets)
-        stats = {"samples_shaded": int(len(sel) * len(offsets)), "pixels": int(len(sel)),
+        stats = {"samples_shaded": int(len(sel) * len(offsets)), "pixels_supersampled": int(len(sel)),
                  "objects_needed": len(needed), "objects_total": len(self.scene.meshes)}
         return out.reshape(H, W, 3).astype(np.float32), stats
 

@@ -1,9 +1,11 @@
 """`taa-study bench`: per-frame cost of every technique on the current Dr.Jit backend, against
 the NumPy oracle on the same input and a memory-bandwidth floor measured in the same run.
 
-- Dr.Jit time: the technique's kernel on inputs already in Dr.Jit arrays, forced to finish with
-  dr.sync_thread() (the LLVM backend runs asynchronously), warm (the compiling runs excluded),
-  median of repeated runs. The end-to-end time through process() (NumPy in and out) is also given.
+- Dr.Jit time: for the plain TAAs, the technique's kernel on inputs already in Dr.Jit arrays,
+  forced to finish with dr.sync_thread() (the LLVM backend runs asynchronously), warm (the
+  compiling runs excluded), median of repeated runs; for the others (FXAA, SMAA, camera-only and
+  sparse TAAs, accumulation) the end-to-end time, which is also given for every technique
+  (process(): NumPy in, NumPy out).
 - NumPy: the oracle in tests/oracle_taa.py (plain NumPy, written for clarity) on the same frame.
 - Bandwidth floor: bytes the technique must read and write per pixel (its buffers, the history it
   reads and writes, its output) divided by the copy bandwidth of this machine, measured with a
@@ -81,10 +83,43 @@ def bytes_per_pixel(tech) -> int:
     return sum(BYTES.get(b, 4) for b in tech.needs) + state + 12   # + the output
 
 
+def _extra_inputs(tech, frame, width, height) -> dict:
+    """What the driver would pass besides the frame: display transform, cameras, extra samples."""
+    from display import DisplayTransform
+    from scenes.camera import CameraState, look_at
+    kw = {}
+    if getattr(tech, "output_space", "linear") == "display":
+        kw["display"] = DisplayTransform.from_reference(frame["color"])
+    if getattr(tech, "needs_cameras", False):
+        cam = CameraState(look_at((0, 0, 5), (0, 0, 0), (0, 1, 0)), 45.0, 0.1, 100.0, width, height)
+        prev = CameraState(look_at((0.02, 0, 5), (0, 0, 0), (0, 1, 0)), 45.0, 0.1, 100.0, width, height)
+        kw["cameras"] = (cam, prev)
+    if getattr(tech, "supersampling", False):   # the extra samples' shading is raster work, not timed here
+        kw["supersampled"] = frame["color"]
+        kw["mask"] = tech.invalid_mask(frame, far=100.0)
+    return kw
+
+
+def _kernel_only(tech, frame, width, height):
+    """The Dr.Jit part alone on inputs already on the device, for plain TAAs; None otherwise."""
+    from taa_impl.base import to_drjit
+    plain = not (getattr(tech, "needs_cameras", False) or getattr(tech, "supersampling", False)
+                 or getattr(tech, "output_space", "linear") == "display")
+    if not plain or not hasattr(tech, "_step") or getattr(tech, "sampling", "sequence") != "sequence":
+        return None
+    bufs = to_drjit({k: frame[k] for k in tech.needs})
+    dr.eval(bufs)
+
+    def kernel():
+        r = tech._step(bufs, width, height, 100.0)
+        dr.eval(r)
+        dr.sync_thread()
+    return kernel
+
+
 def bench(width: int, height: int, repeats: int = 7, techniques=None, numpy_repeats: int = 3,
           log=print) -> dict:
     import taa_impl
-    from taa_impl.base import to_drjit
     frame = synthetic_frame(width, height)
     bw = copy_bandwidth()
     log(f"copy bandwidth: {bw / 1e9:.2f} GB/s")
@@ -94,20 +129,19 @@ def bench(width: int, height: int, repeats: int = 7, techniques=None, numpy_repe
            "techniques": {}, "end_to_end_ms": {}, "numpy_ms": {}, "bandwidth_floor_ms": {}}
     for name in names:
         tech = taa_impl.make(name)
-        if getattr(tech, "sampling", "sequence") != "sequence" or not hasattr(tech, "_step"):
-            continue   # single-image techniques are timed by their own entry below
         log(f"timing {name} ...")
-        tech.process(frame, jitter=(0, 0), far=100.0, reset=True)     # compile, fill history
-        bufs = to_drjit({k: frame[k] for k in tech.needs})
-        dr.eval(bufs)
-
-        def kernel():
-            r = tech._step(bufs, width, height, 100.0)
-            dr.eval(r)
-            dr.sync_thread()
-
-        out["techniques"][name] = {"ms": _median_ms(kernel, repeats)}
-        out["end_to_end_ms"][name] = _median_ms(lambda: tech.process(frame, jitter=(0, 0), far=100.0), repeats)
+        kw = _extra_inputs(tech, frame, width, height)
+        sampling = getattr(tech, "sampling", "sequence")
+        if sampling == "supersample":
+            subs = [frame] * int(tech.params.samples)
+            out["end_to_end_ms"][name] = _median_ms(lambda: tech.process_samples(subs), repeats)
+            out["techniques"][name] = {"ms": out["end_to_end_ms"][name]}
+        else:
+            run = lambda: tech.process(frame, jitter=(0, 0), far=100.0, **kw)  # noqa: E731
+            run()                                        # compile, fill history
+            out["end_to_end_ms"][name] = _median_ms(run, repeats)
+            kernel = _kernel_only(tech, frame, width, height)
+            out["techniques"][name] = {"ms": _median_ms(kernel, repeats) if kernel else out["end_to_end_ms"][name]}
         out["bandwidth_floor_ms"][name] = 1000 * bytes_per_pixel(tech) * width * height / bw
         if oracle is not None and name in ("taa_baseline", "taa_improved"):
             o = oracle.OracleTAA(tech.params, improved=(name == "taa_improved"))

@@ -14,6 +14,11 @@ baseline TAA's extensions (spec section 7), each the baseline with some TAAParam
   taa_reject         reject_depth=0.05, reject_id=True
   taa_ycocg_variance box='ycocg', variance_clip_gamma=1.0, history_filter='catmull_rom',
                      tonemap_blend=True
+Also 'taa_sparse' (sparse supersampling of invalid pixels, seed 002; driven with supersampled= and
+mask=, see taa_impl.sparse) and Ferrando's TAA (seed 004; needs cameras=, see taa_impl.ferrando):
+  taa_ferrando_text          history_weight=0.95, clamp='current'
+  taa_ferrando_code          history_weight=0.6, clamp='history'
+  taa_ferrando_code_noclamp  history_weight=0.3, clamp='none'
 A preset's switches are defaults: `make('taa_variance', variance_clip_gamma=1.5)` overrides one,
 and `make(preset, params=...)` uses the given parameters as they are.
 """
@@ -27,6 +32,8 @@ from .baseline import BaselineTAA
 from .fxaa import ENCODED, FXAA, FXAA_QUALITY_PRESETS, FXAAParams
 from .improved import ImprovedParams, ImprovedTAA
 from .simple import Accumulation, AccumulationParams, NoAA, NoAAParams
+from .sparse import SparseParams, SparseTAA
+from .ferrando import FerrandoParams, FerrandoTAA
 
 
 class Preset:
@@ -56,6 +63,10 @@ PRESETS: dict[str, Preset] = {p.name: p for p in (
     Preset("taa_reject", BaselineTAA, reject_depth=0.05, reject_id=True),
     Preset("taa_ycocg_variance", BaselineTAA, box="ycocg", variance_clip_gamma=1.0,
            history_filter="catmull_rom", tonemap_blend=True),
+    # Ferrando 2018 (seed 004), taa_impl/ferrando.py: the text's reading and the two shaders
+    Preset("taa_ferrando_text", FerrandoTAA, history_weight=0.95, clamp="current"),
+    Preset("taa_ferrando_code", FerrandoTAA, history_weight=0.6, clamp="history"),
+    Preset("taa_ferrando_code_noclamp", FerrandoTAA, history_weight=0.3, clamp="none"),
 )}
 
 TECHNIQUES: dict[str, Callable[..., Technique]] = {
@@ -64,6 +75,7 @@ TECHNIQUES: dict[str, Callable[..., Technique]] = {
     FXAA.name: FXAA,
     BaselineTAA.name: BaselineTAA,
     ImprovedTAA.name: ImprovedTAA,
+    SparseTAA.name: SparseTAA,     # 'taa_sparse' (seed 002), taa_impl/sparse.py
     **PRESETS,
 }
 
@@ -81,4 +93,5 @@ def make(name: str, **overrides) -> Technique:
 __all__ = ["TECHNIQUES", "PRESETS", "Preset", "make", "Technique", "TAAParams", "ImprovedParams",
            "BaselineTAA", "ImprovedTAA", "NoAA", "NoAAParams", "Accumulation", "AccumulationParams",
            "FXAA", "FXAAParams", "FXAA_QUALITY_PRESETS", "ENCODED", "FEEDBACK_PRESETS",
-           "SHARPEN_KERNELS", "SAMPLING_MODES", "OUTPUT_SPACES"]
+           "SHARPEN_KERNELS", "SAMPLING_MODES", "OUTPUT_SPACES", "SparseTAA", "SparseParams",
+           "FerrandoTAA", "FerrandoParams"]

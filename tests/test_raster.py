@@ -178,5 +178,5 @@ def test_supersample_shades_only_masked_pixels_and_equals_the_mean_of_full_frame
         r.close()
     np.testing.assert_allclose(ss[mask], full[mask], atol=1e-6)
     assert np.all(ss[~mask] == 0)
-    assert stats["samples_shaded"] == mask.sum() * 8 and stats["pixels"] == mask.sum()
+    assert stats["samples_shaded"] == mask.sum() * 8 and stats["pixels_supersampled"] == mask.sum()
     assert 0 < stats["objects_needed"] <= stats["objects_total"]
