@@ -222,6 +222,7 @@ def run(profile, scene_list, tech_list, out_dir, no_agreement):
     report.headline(statics)
     report.reproduction(statics, ghosts)
     report.speed_error(statics)
+    report.sparse_cost(statics + ghosts)
     summary = {**study.stats, "seconds": round(_time.perf_counter() - start, 2), "profile": profile,
                "scenes": names, "techniques": labels}
     report.finish(summary)

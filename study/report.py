@@ -224,6 +224,27 @@ class Report:
         if statics:
             self._file("plots/speed_error.png", _plot_speed(statics), {"scenes": [r.scene for r in statics]})
 
+    def sparse_cost(self, results) -> None:
+        """Techniques that shade extra samples (sparse supersampling): how many, for what quality."""
+        rows = []
+        for r in results:
+            for label, per_t in r.stats.items():
+                ts = [t for t in r.frames if t in per_t]
+                if not ts:
+                    continue
+                inv = float(np.mean([per_t[t]["invalid_fraction"] for t in ts]))
+                extra = float(np.mean([per_t[t]["samples_shaded"] for t in ts]))
+                objs = float(np.mean([per_t[t]["objects_needed"] for t in ts]))
+                psnr = float(np.mean([min(r.per_frame[label][t]["psnr"], 1e9) for t in ts]))
+                rows.append([r.scene, r.test, label, f"{100 * inv:.2f} %", f"{extra:.0f}",
+                             f"{extra / (r.width * r.height):.3f}", f"{objs:.1f} / {per_t[ts[0]]['objects_total']}",
+                             fmt("psnr", psnr)])
+        if rows:
+            self._table("sparse_cost", Table(
+                "Sparse supersampling: invalid pixels and extra samples shaded (means over judged frames)",
+                ["scene", "test", "technique", "invalid pixels", "extra samples / frame", "extra samples / pixel",
+                 "objects drawn / total", "PSNR (dB)"], rows), {"scenes": sorted({r[0] for r in rows})})
+
     def finish(self, summary: dict) -> None:
         self._file("study.md", "# TAA study\n\n" + "\n".join(self.markdown), {"tables": sorted(self.manifest)})
         write_text_atomic(self.out / "manifest.json",

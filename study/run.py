@@ -48,6 +48,7 @@ class TestResult:
     temporal: dict[str, float] = field(default_factory=dict)
     recomputed: list[str] = field(default_factory=list)
     artefacts: dict[str, dict] = field(default_factory=dict)   # label -> folder, metrics key, output space
+    stats: dict[str, dict] = field(default_factory=dict)       # label -> t -> technique counters (sparse SS)
     reference_keys: dict[int, str] = field(default_factory=dict)
     width: int = 0
     height: int = 0
@@ -127,6 +128,8 @@ class Study:
                 self.stats["metrics_computed"] += 1
             res.per_frame[c.label] = {int(t): v for t, v in data["per_frame"].items()}
             res.ms[c.label] = run["meta"]["ms"]
+            if run["meta"].get("stats"):
+                res.stats[c.label] = {int(t): v for t, v in run["meta"]["stats"].items()}
             res.temporal[c.label] = data.get("temporal", math.nan)
             res.artefacts[c.label] = {"folder": folders[c.label], "metrics_key": mkey, "run_key": keys[c.label],
                                       "output_space": run["meta"]["output_space"], "technique": c.name,
