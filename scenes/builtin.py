@@ -1,45 +1,17 @@
-"""Built-in scenes, rebuilt procedurally after the thesis's test scenes (spec section 10)."""
+"""Built-in scenes, rebuilt procedurally after the thesis's test scenes (spec section 10).
+
+The first few are defined here; the rest of the thesis scenes and the hard cases live in
+scenes/library/ and are registered in BUILTIN below."""
 from __future__ import annotations
 
 from typing import Callable
 
 import numpy as np
 
-from .description import (Camera, DirectionalLight, Material, MeshSpec, Motion, PointLight,
-                          Resolution, Scene, SceneObject, Texture, Transform)
-
-QUICK = Resolution(quick=(320, 180), full=(1600, 900))
-BROWN = (0.35, 0.16, 0.06)
-BLUE = (0.1, 0.2, 0.6)
-WALL = (0.7, 0.68, 0.62)
-SUN = DirectionalLight(direction=(-0.4, -1.0, -0.6), intensity=(2.2, 2.1, 1.9))
-SKY = (0.18, 0.2, 0.24)
-
-
-def _box(name, size, at, albedo, **kw) -> SceneObject:
-    return SceneObject(name=name, mesh=MeshSpec(kind="box", size=size), material=Material(albedo=albedo),
-                       transform=Transform(translate=at, **kw))
-
-
-def _text_texture() -> np.ndarray:
-    """Black letters on white, drawn in code; nearest-neighbour lookup keeps the hard edges."""
-    from PIL import Image, ImageDraw, ImageFont
-    img = Image.new("L", (512, 256), 255)
-    draw = ImageDraw.Draw(img)
-    font = ImageFont.load_default(size=44)
-    for row, line in enumerate(("TEMPORAL ANTI", "ALIASING: THE", "HISTORY IS A LIE")):
-        draw.text((16, 14 + row * 78), line, fill=0, font=font)
-    a = np.asarray(img, np.float32)[::-1] / 255.0          # row 0 = v = 0 (bottom)
-    return np.repeat(a[..., None], 3, axis=-1) * 0.85 + 0.02
-
-
-def _leaf_alpha(n: int = 64) -> np.ndarray:
-    """A pointed leaf silhouette: 1 inside, 0 outside (binary, as a cut-out texture is)."""
-    v, u = np.meshgrid(np.linspace(0, 1, n, endpoint=False) + 0.5 / n,
-                       np.linspace(0, 1, n, endpoint=False) + 0.5 / n, indexing="ij")
-    half_width = 0.42 * np.sin(np.pi * v) ** 1.3
-    notch = 0.04 * (np.sin(10 * np.pi * v) > 0.6)
-    return (np.abs(u - 0.5) < half_width - notch).astype(np.float32)
+from .description import (Camera, DirectionalLight, Material, MeshSpec, Motion, PointLight, Scene,
+                          SceneObject, Texture, Transform)
+from .library import hard_cases, thesis
+from .library.common import BLUE, BROWN, QUICK, SKY, SUN, WALL, _box, _leaf_alpha, _text_texture  # noqa: F401
 
 
 def pipe(tilted: bool = False) -> Scene:
@@ -70,23 +42,6 @@ def text_wall() -> Scene:
                                                texture=Texture(kind="array", data=_text_texture()))),),
         lights=(DirectionalLight(direction=(0.2, -0.3, -1.0), intensity=(0.9, 0.9, 0.9)),),
         ambient=(0.15, 0.15, 0.15), background=SKY)
-
-
-def atrium() -> Scene:
-    objs = [_box("floor", (8.0, 0.1, 8.0), (0.0, -0.05, 0.0), (0.55, 0.5, 0.45))]
-    for i, x in enumerate((-2.4, -1.2, 0.0, 1.2, 2.4)):
-        objs.append(_box(f"column_{i}", (0.25, 2.2, 0.25), (x, 1.1, -1.6), WALL))
-        objs.append(_box(f"column_b{i}", (0.25, 2.2, 0.25), (x, 1.1, 1.6), WALL))
-    objs.append(_box("beam", (5.4, 0.25, 0.3), (0.0, 2.3, -1.6), WALL))
-    objs.append(_box("beam_b", (5.4, 0.25, 0.3), (0.0, 2.3, 1.6), WALL))
-    objs.append(SceneObject(name="sphere", mesh=MeshSpec(kind="sphere", radius=0.45, segments=48, smooth=True),
-                            material=Material(albedo=(0.7, 0.15, 0.1)), transform=Transform(translate=(0, 0.45, 0))))
-    return Scene(
-        name="atrium", resolution=QUICK, transport="direct_shadows",
-        description="A courtyard of columns and beams with a static sphere, lit and shadowed",
-        stresses="shadow edges and thin column silhouettes at several depths",
-        camera=Camera(position=(0.5, 1.4, 4.6), target=(0.0, 0.8, 0.0), yfov_deg=50, far=40),
-        objects=tuple(objs), lights=(SUN,), ambient=(0.2, 0.21, 0.24), background=SKY)
 
 
 def flowers() -> Scene:
@@ -131,7 +86,22 @@ BUILTIN: dict[str, Callable[[], Scene]] = {
     "pipe": pipe,
     "pipe_tilted": lambda: pipe(tilted=True),
     "text_wall": text_wall,
-    "atrium": atrium,
+    "atrium": thesis.atrium,
     "flowers": flowers,
     "sphere_ghosting": sphere_ghosting,
+    # thesis scenes (scenes/library/thesis.py)
+    "blinds": thesis.blinds,
+    "arched_window": thesis.arched,
+    "hard_edges": thesis.hard_edges,
+    "hairball_unlit": lambda: thesis.hairball(lit=False, rotating=False),
+    "hairball_lit": lambda: thesis.hairball(lit=True, rotating=False),
+    "hairball_rotating_unlit": lambda: thesis.hairball(lit=False, rotating=True),
+    "hairball_rotating_lit": lambda: thesis.hairball(lit=True, rotating=True),
+    # hard cases (scenes/library/hard_cases.py)
+    "subpixel_lines": hard_cases.subpixel_lines,
+    "moire": hard_cases.moire,
+    "hdr_contrast": hard_cases.hdr_contrast,
+    "fast_object": hard_cases.fast_object,
+    "disocclusion": hard_cases.disocclusion,
+    "camera_cut": hard_cases.camera_cut,
 }
