@@ -113,7 +113,7 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
 
 
 def trace_pixel_centres(scene: ResolvedScene, t: int, width: int, height: int):
-    """One Mitsuba ray through each pixel centre: (colour (H,W,3), object id (H,W)).
+    """One Mitsuba ray through each pixel centre: (colour (H,W,3), object id (H,W), triangle (H,W)).
 
     Used by the agreement check: the same point the raster samples with zero jitter."""
     cam = scene.camera(t, width, height)
@@ -125,4 +125,6 @@ def trace_pixel_centres(scene: ResolvedScene, t: int, width: int, height: int):
     surf, _ = trace_visible(geo, mi.Ray3f(ray))
     col = shade(geo, surf, cam.position)
     rgb = np.stack([np.asarray(col[k]) for k in range(3)], -1).reshape(height, width, 3)
-    return rgb.astype(np.float32), np.asarray(surf.obj).reshape(height, width).astype(np.int32)
+    ids = np.asarray(surf.obj).reshape(height, width).astype(np.int32)
+    prim = np.where(ids > 0, np.asarray(surf.prim).reshape(height, width).astype(np.int64), -1)
+    return rgb.astype(np.float32), ids, prim.astype(np.int32)

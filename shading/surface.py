@@ -31,6 +31,7 @@ class Surface:
     n_geo: mi.Vector3f     # unit geometric normal
     n_sh: mi.Vector3f      # unit shading normal (interpolated for smooth objects)
     uv: mi.Point2f
+    prim: mi.UInt32 | None = None   # triangle index within the object, where known
 
 
 def _texel(table: mi.UInt32, data: mi.Float, obj, uv, channels: int, active):
@@ -87,7 +88,7 @@ def trace_visible(geo: FrameGeometry, ray: mi.Ray3f, active=True) -> tuple[Surfa
     si = _intersect_opaque(geo, ray, active)
     valid = si.is_valid()
     surf = Surface(obj=dr.select(valid, _object_id(si), 0), p=si.p, n_geo=mi.Vector3f(si.n),
-                   n_sh=mi.Vector3f(si.sh_frame.n), uv=si.uv)
+                   n_sh=mi.Vector3f(si.sh_frame.n), uv=si.uv, prim=si.prim_index)
     return surf, si.t
 
 

@@ -29,14 +29,15 @@ def test_mitsuba_camera_matches_ours():
 def test_pixel_centre_rays_match_raster_colours_exactly_in_flat_regions():
     from raster import Rasterizer
     scene = two_colour_scene(transport="direct")
-    rgb, ids = trace_pixel_centres(scene, 0, 40, 30)
+    rgb, ids, prims = trace_pixel_centres(scene, 0, 40, 30)
     r = Rasterizer(scene, 40, 30)
     try:
-        b = r.render(0, (0, 0), ("color", "object_id"))
+        b = r.render(0, (0, 0), ("color", "object_id", "prim_id"))
     finally:
         r.close()
     same = ids == b["object_id"]
     assert same.mean() > 0.99
+    assert np.mean(prims[same] == b["prim_id"][same]) > 0.99      # the same triangle, too
     np.testing.assert_allclose(rgb[same], b["color"][same], atol=1e-6)
 
 
