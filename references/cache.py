@@ -62,8 +62,10 @@ class ReferenceCache:
             se = np.stack([ch[f"stderr.{c}"] for c in "RGB"], -1).astype(np.float32)
             if img.shape != shape or not (np.all(np.isfinite(img)) and np.all(np.isfinite(se))):
                 raise ValueError("wrong shape or NaN/Inf pixels")
-            return Reference(img, se, int(h["taa_spp"]), int(h["taa_passes"]), float(h["taa_seconds"]),
-                             float(h["taa_noise_psnr_db"]), key)
+            ref = Reference(img, se, int(h["taa_spp"]), int(h["taa_passes"]), float(h["taa_seconds"]),
+                            float(h["taa_noise_psnr_db"]), key)
+            ref._history = [tuple(x) for x in json.loads(h.get("taa_convergence", "[]"))]
+            return ref
         except Exception as exc:
             self.log(f"reference cache: {path} is corrupt ({exc}); removing it and rendering again")
             path.unlink(missing_ok=True)
@@ -73,7 +75,9 @@ class ReferenceCache:
         header = {"taa_key": ref.key, "taa_scene": scene.name, "taa_scene_hash": scene.content_hash,
                   "taa_frame": int(t), "taa_spp": int(ref.spp), "taa_passes": int(ref.passes),
                   "taa_seconds": float(ref.seconds), "taa_noise_psnr_db": float(ref.noise_psnr_db),
-                  "taa_code": code_version()}
+                  "taa_code": code_version(),
+                  "taa_convergence": json.dumps([[int(a), round(float(b), 4), round(float(c), 3)]
+                                                 for a, b, c in ref.noise_history])}
         chans = {"RGB": ref.image}
         for k, c in enumerate("RGB"):
             chans[f"stderr.{c}"] = ref.stderr[..., k]

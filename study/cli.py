@@ -223,6 +223,7 @@ def run(profile, scene_list, tech_list, out_dir, no_agreement):
     report.reproduction(statics, ghosts)
     report.speed_error(statics)
     report.sparse_cost(statics + ghosts)
+    report.convergence({s.scene: study.reference(sc, 0, s.width, s.height) for s, sc in zip(statics, scenes_)})
     summary = {**study.stats, "seconds": round(_time.perf_counter() - start, 2), "profile": profile,
                "scenes": names, "techniques": labels}
     report.finish(summary)

@@ -224,6 +224,18 @@ class Report:
         if statics:
             self._file("plots/speed_error.png", _plot_speed(statics), {"scenes": [r.scene for r in statics]})
 
+    def convergence(self, refs: dict) -> None:
+        """The references' own convergence: spp and seconds against their noise (scene -> Reference)."""
+        rows = [[name, str(r.spp), str(r.passes), f"{r.seconds:.2f}", f"{r.noise_psnr_db:.2f}"]
+                for name, r in refs.items()]
+        if not rows:
+            return
+        self._table("reference_convergence", Table(
+            "Reference convergence (static frame): samples per pixel and time to reach the noise target",
+            ["scene", "spp", "passes", "seconds", "noise PSNR (dB)"], rows), {n: r.key for n, r in refs.items()})
+        if any(r.noise_history for r in refs.values()):
+            self._file("plots/reference_convergence.png", _plot_convergence(refs), {n: r.key for n, r in refs.items()})
+
     def sparse_cost(self, results) -> None:
         """Techniques that shade extra samples (sparse supersampling): how many, for what quality."""
         rows = []
@@ -276,6 +288,23 @@ def _plot_series(res) -> bytes:
     ax.set_ylabel("PSNR (dB)")
     ax.set_title(f"Ghosting test: {res.scene}")
     ax.legend(fontsize=7)
+    fig.tight_layout()
+    return _fig_bytes(fig)
+
+
+def _plot_convergence(refs) -> bytes:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(6, 3.6))
+    for name, r in refs.items():
+        h = r.noise_history
+        if h:
+            ax.plot([x[0] for x in h], [x[2] for x in h], label=name, lw=0.9)
+    ax.set_xscale("log")
+    ax.set_xlabel("samples per pixel")
+    ax.set_ylabel("reference noise PSNR (dB)")
+    ax.legend(fontsize=5, ncol=2)
     fig.tight_layout()
     return _fig_bytes(fig)
 
