@@ -278,7 +278,7 @@ def ab(a, b, scene_list, profile, gates, as_json):
     taa-study ab taa_baseline "taa_baseline:sharpen=normalised" --max-worse psnr=0.25"""
     from scenes import SceneError, get_scene
     from study.ab import AB_METRICS, compare
-    from study.config import TechniqueConfig, available
+    from study.config import TechniqueConfig
     try:
         ca, cb = TechniqueConfig.parse(a), TechniqueConfig.parse(b)
         scenes_ = [get_scene(s.strip()) for s in scene_list.split(",") if s.strip()]

@@ -4,7 +4,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -17,6 +17,30 @@ def source_hash(*globs: str) -> str:
         for p in sorted(ROOT.glob(pattern)):
             h.update(p.relative_to(ROOT).as_posix().encode())
             h.update(p.read_bytes())
+    return h.hexdigest()[:12]
+
+
+def technique_code_hash(tech) -> str:
+    """Hash of the taa_impl modules this technique's code comes from: the modules of its classes
+    and, transitively, the taa_impl modules they use. Editing one technique recomputes only it."""
+    import inspect
+    import sys
+    seen: set[str] = set()
+    todo = [c.__module__ for c in type(tech).__mro__ if c.__module__.startswith("taa_impl")]
+    while todo:
+        name = todo.pop()
+        if name in seen or name not in sys.modules:
+            continue
+        seen.add(name)
+        for v in vars(sys.modules[name]).values():
+            mod = v.__name__ if inspect.ismodule(v) else getattr(v, "__module__", None)
+            if isinstance(mod, str) and mod.startswith("taa_impl.") and mod not in seen:
+                todo.append(mod)
+    h = hashlib.sha256()
+    for name in sorted(seen):
+        path = Path(sys.modules[name].__file__)
+        h.update(name.encode())
+        h.update(path.read_bytes())
     return h.hexdigest()[:12]
 
 
@@ -38,7 +62,7 @@ class TechniqueConfig:
     def key(self) -> str:
         tech = self.make()
         params = dataclasses.asdict(tech.params) if dataclasses.is_dataclass(tech.params) else repr(tech.params)
-        return stable_hash({"name": self.name, "params": params, "code": source_hash("taa_impl/*.py")})
+        return stable_hash({"name": self.name, "params": params, "code": technique_code_hash(tech)})
 
     @classmethod
     def parse(cls, text: str) -> "TechniqueConfig":

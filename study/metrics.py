@@ -91,3 +91,20 @@ def temporal_instability(ref_seq: list[np.ndarray], x_seq: list[np.ndarray]) -> 
         acc += float(np.sum((dx - dr_) ** 2))
         n += dr_.size
     return math.sqrt(acc / n)
+
+
+def judge_run(images: dict, output_space: str, refs: dict, displays: dict, ref8: dict, kept: list[int]):
+    """Metrics of every kept frame of one technique's run against its references, the temporal
+    instability of the sequence, and the maps of the last frame."""
+    per_frame, seq8, maps = {}, [], {}
+    for t in kept:
+        x, disp = images[t], displays[t]
+        if output_space == "display":
+            x_lin, x_disp = None, np.clip(x.astype(np.float64), 0, 1)
+        else:
+            x_lin, x_disp = x, disp.encode(x)
+        x8 = np.round(x_disp * 255).astype(np.uint8)
+        seq8.append(x8)
+        per_frame[t], maps = all_metrics(refs[t].image, disp.encode(refs[t].image), ref8[t], x_lin, x_disp, x8)
+    temporal = temporal_instability([ref8[t] for t in kept], seq8) if len(kept) > 1 else math.nan
+    return {"per_frame": {str(t): v for t, v in per_frame.items()}, "temporal": temporal}, maps

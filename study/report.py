@@ -15,7 +15,6 @@ from PIL import Image
 from display import DisplayTransform
 from references.exr import read_exr, write_exr
 
-from .metrics import better
 from .store import write_bytes_atomic, write_text_atomic
 from .tables import METRIC_LABELS, Table, fmt, thesis_layout
 

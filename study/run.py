@@ -7,19 +7,16 @@ metric code. A second run with nothing changed renders nothing and reads the cac
 """
 from __future__ import annotations
 
-import json
 import math
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
 from tqdm import tqdm
 
 from display import DisplayTransform
 from references import ReferenceCache
-from references.exr import read_exr, write_exr
-from scenes import ResolvedScene, get_scene
+from references.exr import write_exr
+from scenes import ResolvedScene
 
 from . import metrics as M
 from .config import PROFILES, Profile, TechniqueConfig, source_hash, stable_hash
@@ -30,7 +27,7 @@ from .store import RunStore
 # what turns a scene into frames: camera, jitter, animation, raster, shading, and the driver.
 RASTER_CODE = ("raster/*.py", "raster/shaders/*", "shading/*.py", "scenes/camera.py", "scenes/jitter.py",
                "scenes/resolved.py", "study/protocols.py")
-METRIC_CODE = ("study/metrics.py", "display/*.py", "study/run.py")
+METRIC_CODE = ("study/metrics.py", "display/*.py")
 
 
 def is_animated(scene: ResolvedScene) -> bool:
@@ -123,7 +120,9 @@ class Study:
             mpath = folders[c.label] / f"metrics_{mkey}.json"
             data = self.store.load_json(mpath, mkey)
             if data is None:
-                data = self._metrics(run, refs, displays, ref8, kept, folders[c.label], mkey, keep_maps=(test == "static"))
+                data, maps = M.judge_run(run["images"], run["meta"]["output_space"], refs, displays, ref8, kept)
+                if test == "static":
+                    write_exr(folders[c.label] / f"maps_{mkey}.exr", maps)
                 self.store.save_json(mpath, mkey, data)
                 self.stats["metrics_computed"] += 1
             res.per_frame[c.label] = {int(t): v for t, v in data["per_frame"].items()}
@@ -152,26 +151,3 @@ class Study:
             data = a.as_dict()
             self.store.save_json(path, key, data)
         return data
-
-    def _metrics(self, run, refs, displays, ref8, kept, folder, mkey, keep_maps):
-        space = run["meta"]["output_space"]
-        per_frame, seq8 = {}, []
-        for t in kept:
-            x = run["images"][t]
-            disp = displays[t]
-            if space == "display":
-                x_lin, x_disp = None, np.clip(x.astype(np.float64), 0, 1)
-            else:
-                x_lin, x_disp = x, disp.encode(x)
-            x8 = np.round(x_disp * 255).astype(np.uint8)
-            seq8.append(x8)
-            vals, maps = M.all_metrics(refs[t].image, disp.encode(refs[t].image), ref8[t], x_lin, x_disp, x8)
-            per_frame[t] = vals
-            if keep_maps and t == kept[-1]:
-                write_exr(folder / f"maps_{mkey}.exr", {k: v for k, v in maps.items()})
-        temporal = M.temporal_instability([ref8[t] for t in kept], seq8) if len(kept) > 1 else math.nan
-        return {"per_frame": {str(t): v for t, v in per_frame.items()}, "temporal": temporal}
-
-    def maps(self, scene_name: str, test: str, label_key: str, mkey: str) -> dict[str, np.ndarray]:
-        _, ch = read_exr(self.store.folder(test, scene_name, label_key) / f"maps_{mkey}.exr")
-        return ch
