@@ -219,6 +219,14 @@ def run(profile, scene_list, tech_list, out_dir, no_agreement):
             g = study.run_test(scene, "ghosting", configs)
             report.ghosting(g, agree)
             ghosts.append(g)
+    if not tech_list:   # the default study also sweeps sparse supersampling's threshold
+        from study.config import SPARSE_SWEEP
+        sweep = [c for c in SPARSE_SWEEP if c.name in __import__("taa_impl").TECHNIQUES]
+        for scene in scenes_:
+            if scene.name in study.profile.sweep_scenes and sweep:
+                report.sparse_cost([study.run_test(scene, "ghosting" if is_animated(scene) else "static", sweep)],
+                                   stem="sparse_sweep_" + scene.name,
+                                   title=f"Sparse supersampling: mu against cost and quality ({scene.name})")
     report.headline(statics)
     report.reproduction(statics, ghosts)
     report.speed_error(statics)

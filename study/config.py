@@ -82,15 +82,22 @@ class TechniqueConfig:
         return cls(label or text, name, tuple(overrides))
 
 
-# The thesis's columns (No AA | FXAA | SMAA | Uncharted | Improved) plus an accumulation buffer.
+# The thesis's columns (No AA | FXAA | SMAA | Uncharted | Improved), then the other source
+# documents' techniques and an accumulation buffer.
 DEFAULT_TECHNIQUES = (
     TechniqueConfig("No AA", "noaa"),
     TechniqueConfig("FXAA", "fxaa"),
     TechniqueConfig("SMAA", "smaa"),
     TechniqueConfig("Uncharted", "taa_baseline"),
     TechniqueConfig("Improved", "taa_improved"),
+    TechniqueConfig("Sparse SS", "taa_sparse"),
+    TechniqueConfig("Ferrando", "taa_ferrando_text"),
     TechniqueConfig("SSAA 16x", "accumulation", (("samples", 16),)),
 )
+
+# Sparse supersampling's threshold mu against its cost (seed 002 chose 0.2 as the trade-off).
+SPARSE_SWEEP = tuple(TechniqueConfig(f"Sparse mu={mu}", "taa_sparse", (("mu", mu),))
+                     for mu in (0.05, 0.1, 0.2, 0.4, 0.8))
 
 
 @dataclass(frozen=True)
@@ -101,6 +108,7 @@ class Profile:
     history_frames: int = 16       # static test: frames of TAA history before the kept frame
     target_noise_db: float = 60.0  # reference convergence target
     ghosting_techniques_skip: tuple = ("accumulation",)   # N sub-frames per frame: too slow for sequences
+    sweep_scenes: tuple = ("sphere_ghosting", "disocclusion")  # where the sparse-supersampling mu sweep runs
 
 
 PROFILES = {

@@ -235,7 +235,8 @@ class Report:
         if any(r.noise_history for r in refs.values()):
             self._file("plots/reference_convergence.png", _plot_convergence(refs), {n: r.key for n, r in refs.items()})
 
-    def sparse_cost(self, results) -> None:
+    def sparse_cost(self, results, stem: str = "sparse_cost",
+                    title: str = "Sparse supersampling: invalid pixels and extra samples shaded (means over judged frames)") -> None:
         """Techniques that shade extra samples (sparse supersampling): how many, for what quality."""
         rows = []
         for r in results:
@@ -251,8 +252,8 @@ class Report:
                              f"{extra / (r.width * r.height):.3f}", f"{objs:.1f} / {per_t[ts[0]]['objects_total']}",
                              fmt("psnr", psnr)])
         if rows:
-            self._table("sparse_cost", Table(
-                "Sparse supersampling: invalid pixels and extra samples shaded (means over judged frames)",
+            self._table(stem, Table(
+                title,
                 ["scene", "test", "technique", "invalid pixels", "extra samples / frame", "extra samples / pixel",
                  "objects drawn / total", "PSNR (dB)"], rows), {"scenes": sorted({r[0] for r in rows})})
 
