@@ -32,6 +32,7 @@ from .baseline import BaselineTAA
 from .fxaa import ENCODED, FXAA, FXAA_QUALITY_PRESETS, FXAAParams
 from .improved import ImprovedParams, ImprovedTAA
 from .simple import Accumulation, AccumulationParams, NoAA, NoAAParams
+from .smaa import SMAA
 from .sparse import SparseParams, SparseTAA
 from .ferrando import FerrandoParams, FerrandoTAA
 
@@ -73,6 +74,7 @@ TECHNIQUES: dict[str, Callable[..., Technique]] = {
     NoAA.name: NoAA,
     Accumulation.name: Accumulation,
     FXAA.name: FXAA,
+    SMAA.name: SMAA,
     BaselineTAA.name: BaselineTAA,
     ImprovedTAA.name: ImprovedTAA,
     SparseTAA.name: SparseTAA,     # 'taa_sparse' (seed 002), taa_impl/sparse.py
