@@ -72,8 +72,8 @@ class Rasterizer:
             self._geo_cache = (key, frame_geometry(self.scene, t))
         return self._geo_cache[1]
 
-    def _prev_positions(self, t: int) -> mi.Float:
-        return mi.Float(np.concatenate([self.scene.world_vertices(i, t - 1).astype(np.float32)
+    def _prev_positions(self, prev_t: int) -> mi.Float:
+        return mi.Float(np.concatenate([self.scene.world_vertices(i, prev_t).astype(np.float32)
                                         for i in range(len(self.scene.meshes))]).ravel())
 
     @staticmethod
@@ -144,7 +144,12 @@ class Rasterizer:
                  "objects_needed": len(needed), "objects_total": len(self.scene.meshes)}
         return out.reshape(H, W, 3).astype(np.float32), stats
 
-    def render(self, t: int, jitter=(0.0, 0.0), buffers=("color",)) -> dict[str, np.ndarray]:
+    def render(self, t: int, jitter=(0.0, 0.0), buffers=("color",), prev_t: int | None = None
+               ) -> dict[str, np.ndarray]:
+        """Buffers of scene time t. Motion and prev_depth refer to scene time `prev_t` (default
+        t - 1): the time of the frame the technique saw before, which for a static test (many
+        frames of one instant) is t itself."""
+        prev_t = t - 1 if prev_t is None else prev_t
         unknown = set(buffers) - set(BUFFERS)
         if unknown:
             raise RasterError(f"unknown buffer(s) {sorted(unknown)}; available: {BUFFERS}")
@@ -192,8 +197,8 @@ class Rasterizer:
             facing = dr.select(dr.dot(n_geo, p - ray_o) > 0, -n_sh, n_sh)
             out["normal"] = img(dr.select(valid, facing, 0.0), 3)
         if "motion" in buffers or "prev_depth" in buffers:
-            prev_cam = self.scene.camera(t - 1, W, H)
-            pp = self._prev_positions(t)
+            prev_cam = self.scene.camera(prev_t, W, H)
+            pp = self._prev_positions(prev_t)
             p_prev = _gather3(pp, i0) * b0 + _gather3(pp, i1) * b1 + _gather3(pp, i2) * b2
             pos_prev, depth_prev = image_position(prev_cam, p_prev)
             if "motion" in buffers:

@@ -30,14 +30,16 @@ class Step:
     k: int          # jitter index of sequence techniques
     keep: bool      # output judged
     reset: bool     # history reset before this step
+    prev_t: int     # scene time of the previous step: motion vectors and previous cameras refer to it
 
 
 def static_schedule(t: int, history: int) -> list[Step]:
-    return [Step(t, k, keep=(k == history - 1), reset=(k == 0)) for k in range(history)]
+    # Every frame shows the same instant: nothing moves between them, only the jitter changes.
+    return [Step(t, k, keep=(k == history - 1), reset=(k == 0), prev_t=t) for k in range(history)]
 
 
 def ghosting_schedule(scene: ResolvedScene, frames: int) -> list[Step]:
-    return [Step(t, t, keep=True, reset=scene.is_cut(t)) for t in range(frames)]
+    return [Step(t, t, keep=True, reset=scene.is_cut(t), prev_t=t - 1) for t in range(frames)]
 
 
 def sampling_of(tech) -> str:
@@ -67,11 +69,11 @@ def run_schedule(scene: ResolvedScene, width: int, height: int, schedule: list[S
                     kwargs["display"] = displays[step.t]
                 if getattr(tech, "needs_cameras", False):   # e.g. motion from depth and camera only
                     kwargs["cameras"] = (scene.camera(step.t, width, height),
-                                         scene.camera(step.t - 1, width, height))
+                                         scene.camera(step.prev_t, width, height))
                 if mode == "sequence":
                     if seq_frame is None:
                         jit = halton_offset(step.k, TAA_PERIOD)
-                        seq_frame = (raster.render(step.t, jit, tuple(needs)), jit)
+                        seq_frame = (raster.render(step.t, jit, tuple(needs), prev_t=step.prev_t), jit)
                     frame, jit = seq_frame
                     t0 = time.perf_counter()
                     if getattr(tech, "supersampling", False):
@@ -90,12 +92,13 @@ def run_schedule(scene: ResolvedScene, width: int, height: int, schedule: list[S
                         img = tech.process(frame, jitter=jit, **kwargs)
                 elif mode == "centre":
                     if centre_frame is None:
-                        centre_frame = raster.render(step.t, (0.0, 0.0), tuple(needs))
+                        centre_frame = raster.render(step.t, (0.0, 0.0), tuple(needs), prev_t=step.prev_t)
                     t0 = time.perf_counter()
                     img = tech.process(centre_frame, jitter=(0.0, 0.0), **kwargs)
                 elif mode == "supersample":
                     n = int(tech.params.samples)
-                    subs = [raster.render(step.t, halton_offset(j, n), tuple(needs)) for j in range(n)]
+                    subs = [raster.render(step.t, halton_offset(j, n), tuple(needs), prev_t=step.prev_t)
+                            for j in range(n)]
                     t0 = time.perf_counter()
                     img = tech.process_samples(subs)
                 else:

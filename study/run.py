@@ -86,7 +86,7 @@ class Study:
             refs[t] = self.reference(scene, t, w, h)
         displays = {t: DisplayTransform.from_reference(r.image) for t, r in refs.items()}
 
-        base = {"scene": scene.content_hash, "test": test, "schedule": [(s.t, s.k, s.keep, s.reset) for s in schedule],
+        base = {"scene": scene.content_hash, "test": test, "schedule": [(s.t, s.k, s.keep, s.reset, s.prev_t) for s in schedule],
                 "res": (w, h), "raster": self.raster_code}
         keys = {c.label: stable_hash({**base, "technique": c.key()}) for c in configs}
         folders = {c.label: self.store.folder(test, scene.name, keys[c.label]) for c in configs}

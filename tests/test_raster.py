@@ -180,3 +180,16 @@ def test_supersample_shades_only_masked_pixels_and_equals_the_mean_of_full_frame
     assert np.all(ss[~mask] == 0)
     assert stats["samples_shaded"] == mask.sum() * 8 and stats["pixels_supersampled"] == mask.sum()
     assert 0 < stats["objects_needed"] <= stats["objects_total"]
+
+
+def test_motion_refers_to_the_given_previous_time():
+    """A static test renders many frames of one instant: with prev_t = t nothing moves."""
+    scene = _moving_scene(Motion(velocity=(0.07, -0.03, 0.05)), cam_velocity=(0.05, 0, 0))
+    r = Rasterizer(scene, W, H)
+    try:
+        still = r.render(4, (0.2, 0.1), ("motion", "depth", "prev_depth"), prev_t=4)
+        moving = r.render(4, (0.2, 0.1), ("motion",))
+    finally:
+        r.close()
+    assert np.abs(still["motion"]).max() < 1e-4 and np.allclose(still["prev_depth"], still["depth"], rtol=1e-6)
+    assert np.abs(moving["motion"]).max() > 0.5
