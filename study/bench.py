@@ -80,7 +80,8 @@ def _oracle_module():
 
 def bytes_per_pixel(tech) -> int:
     state = int(getattr(tech, "history_bytes_per_pixel", 0))
-    return sum(BYTES.get(b, 4) for b in tech.needs) + state + 12   # + the output
+    frames = int(tech.params.samples) if getattr(tech, "sampling", "") == "supersample" else 1
+    return frames * sum(BYTES.get(b, 4) for b in tech.needs) + state + 12   # + the output
 
 
 def _extra_inputs(tech, frame, width, height) -> dict:
