@@ -55,6 +55,7 @@ def run_schedule(scene: ResolvedScene, width: int, height: int, schedule: list[S
     out = {c.label: {"images": {}, "times": [], "output_space": getattr(techs[c.label], "output_space", "linear"),
                      "nonfinite": 0, "stats": {}} for c in configs}
     far = scene.desc.camera.far
+    first_kept = True   # single-image techniques run twice there, so their time excludes the compile
     raster = Rasterizer(scene, width, height)
     try:
         for step in tqdm(schedule, desc=desc or scene.name, unit="frame", disable=not progress,
@@ -93,12 +94,16 @@ def run_schedule(scene: ResolvedScene, width: int, height: int, schedule: list[S
                 elif mode == "centre":
                     if centre_frame is None:
                         centre_frame = raster.render(step.t, (0.0, 0.0), tuple(needs), prev_t=step.prev_t)
+                    if first_kept:
+                        tech.process(centre_frame, jitter=(0.0, 0.0), **kwargs)
                     t0 = time.perf_counter()
                     img = tech.process(centre_frame, jitter=(0.0, 0.0), **kwargs)
                 elif mode == "supersample":
                     n = int(tech.params.samples)
                     subs = [raster.render(step.t, halton_offset(j, n), tuple(needs), prev_t=step.prev_t)
                             for j in range(n)]
+                    if first_kept:
+                        tech.process_samples(subs)
                     t0 = time.perf_counter()
                     img = tech.process_samples(subs)
                 else:
@@ -107,9 +112,12 @@ def run_schedule(scene: ResolvedScene, width: int, height: int, schedule: list[S
                 out[label]["nonfinite"] += int(getattr(tech, "last_nonfinite_count", 0))
                 if step.keep:
                     out[label]["images"][step.t] = np.asarray(img, np.float32)
+            if step.keep:
+                first_kept = False
     finally:
         raster.close()
     for label, r in out.items():
-        warm = r.pop("times")[2:] or [0.0]     # the first calls compile kernels
+        times = r.pop("times")
+        warm = times[2:] if len(times) > 2 else times   # the first calls compile kernels
         r["ms"] = 1000 * statistics.median(warm)
     return out
