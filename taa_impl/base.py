@@ -232,3 +232,37 @@ def from_drjit_color(c, h: int, w: int) -> np.ndarray:
 
 def from_drjit_scalar(f, h: int, w: int) -> np.ndarray:
     return np.asarray(f, dtype=np.float32).reshape(h, w).copy()
+
+
+class DisplayImageTechnique(Technique):
+    """A single-image post-process on the display image (FXAA, SMAA): the driver renders the
+    unjittered frame, the colour is display-encoded here, and `kernel(grid, rgb, params)` returns
+    the output and its per-pixel intermediates."""
+    needs: ClassVar[frozenset[str]] = frozenset({"color"})
+    sampling: ClassVar[str] = "centre"
+    output_space: ClassVar[str] = "display"
+
+    @staticmethod
+    def kernel(grid, rgb, params):
+        raise NotImplementedError
+
+    def _clear_history(self) -> None:
+        self._grid = None
+        self._terms: dict = {}
+
+    def _prepare(self, bufs, display):
+        bufs = dict(bufs)
+        bufs["color"] = np.ascontiguousarray(display.encode(bufs["color"]), dtype=np.float32)
+        return bufs
+
+    def _step(self, b: dict, w: int, h: int, far: float):
+        from . import kernels as K
+        if self._grid is None or (self._grid.w, self._grid.h) != (w, h):
+            self._grid = K.Grid(w, h)
+        out, self._terms = type(self).kernel(self._grid, b["color"], self.params)
+        return out
+
+    def debug_terms(self) -> dict[str, np.ndarray]:
+        """Per-pixel intermediates of the last frame as (H, W) float32 arrays."""
+        h, w = self._shape
+        return {k: np.asarray(v, np.float32).reshape(h, w).copy() for k, v in self._terms.items()}

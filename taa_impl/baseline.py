@@ -153,14 +153,11 @@ class BaselineTAA(TAATechnique):
     needs = frozenset({"color", "depth", "motion"})
     Params = TAAParams
 
-    def _step(self, b: dict, w: int, h: int, far: float):
+    def _box(self, grid, c):
+        """Neighbourhood box (min, max, mean) in the box space: min/max of 3x3 and cross, or
+        Salvi's variance box, alone or intersected with it."""
         p = self.params
-        grid = self._grid_for(w, h)
-        c = b["color"]
-        best_i = K.closest_index(grid, b["depth"])
-        velocity = dr.gather(mi.Vector2f, b["motion"], best_i)
-        reject = self._rejection(grid, b, best_i, velocity)
-        cs = K.rgb_to_ycocg(c) if p.box == "ycocg" else c      # the box space
+        cs = K.rgb_to_ycocg(c) if p.box == "ycocg" else c
         bmin, bmax, bavg = K.neighbourhood(grid, cs).averaged()
         if p.variance_clip_gamma is not None:
             vmin, vmax, bavg = K.variance_box(grid, cs, p.variance_clip_gamma)
@@ -168,6 +165,16 @@ class BaselineTAA(TAATechnique):
                 bmin, bmax = dr.maximum(bmin, vmin), dr.minimum(bmax, vmax)
             else:
                 bmin, bmax = vmin, vmax
+        return bmin, bmax, bavg
+
+    def _step(self, b: dict, w: int, h: int, far: float):
+        p = self.params
+        grid = self._grid_for(w, h)
+        c = b["color"]
+        best_i = K.closest_index(grid, b["depth"])
+        velocity = dr.gather(mi.Vector2f, b["motion"], best_i)
+        reject = self._rejection(grid, b, best_i, velocity)
+        bmin, bmax, bavg = self._box(grid, c)
         blend, valid = resolve(p, grid, c, self._history, velocity, bmin, bmax, reject)
         dr.eval(blend)
         self._history = blend

@@ -47,7 +47,7 @@ import backend  # noqa: F401
 from backend import dr, mi
 
 from . import kernels as K
-from .base import Technique
+from .base import DisplayImageTechnique
 
 # FXAA_QUALITY__P0 .. P(PS-1) of FXAA 3.11's quality presets (10-15 medium dither, 20-29 low
 # dither, 39 extreme quality, no dither).
@@ -108,34 +108,15 @@ class EncodedDisplay:
 ENCODED = EncodedDisplay()
 
 
-class FXAA(Technique):
+class FXAA(DisplayImageTechnique):
+    """debug_terms(): luma, early_exit, horz_span, pixel_offset (the final offset in pixels,
+    signed along the edge normal)."""
     name = "fxaa"
-    needs = frozenset({"color"})
     Params = FXAAParams
-    sampling = "centre"
-    output_space = "display"
 
-    def _clear_history(self) -> None:
-        self._grid = None
-        self._terms: dict = {}
-
-    def _prepare(self, bufs, display):
-        bufs = dict(bufs)
-        bufs["color"] = np.ascontiguousarray(display.encode(bufs["color"]), dtype=np.float32)
-        return bufs
-
-    def _step(self, b: dict, w: int, h: int, far: float):
-        if self._grid is None or (self._grid.w, self._grid.h) != (w, h):
-            self._grid = K.Grid(w, h)
-        out, terms = fxaa(self._grid, b["color"], self.params)
-        self._terms = terms
-        return out
-
-    def debug_terms(self) -> dict[str, np.ndarray]:
-        """Per-pixel intermediates of the last frame: luma, early_exit, horz_span, pixel_offset
-        (the final offset in pixels, signed along the edge normal)."""
-        h, w = self._shape
-        return {k: np.asarray(v, np.float32).reshape(h, w).copy() for k, v in self._terms.items()}
+    @staticmethod
+    def kernel(grid, rgb, params):
+        return fxaa(grid, rgb, params)
 
 
 def fxaa(grid: K.Grid, rgb, p: FXAAParams):

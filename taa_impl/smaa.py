@@ -64,14 +64,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
 
 import backend  # noqa: F401
 from backend import dr, mi
 
 from . import kernels as K
 from . import smaa_area as A
-from .base import Technique
+from .base import DisplayImageTechnique
 
 LUMAS = {"rec709": (0.2126, 0.7152, 0.0722), "rec601": (0.299, 0.587, 0.114)}
 BLEND_SPACES = ("linear", "display")
@@ -127,35 +126,15 @@ class SMAAParams:
             raise ValueError("min_blend_weight must be >= 0")
 
 
-class SMAA(Technique):
+class SMAA(DisplayImageTechnique):
+    """debug_terms(): luma, edge_left, edge_top (0/1), weight_r/g/b/a (the blending weights) and
+    diagonal (1 where the top-edge weights came from the diagonal pass)."""
     name = "smaa"
-    needs = frozenset({"color"})
     Params = SMAAParams
-    sampling = "centre"
-    output_space = "display"
 
-    def _clear_history(self) -> None:
-        self._grid = None
-        self._terms: dict = {}
-
-    def _prepare(self, bufs, display):
-        bufs = dict(bufs)
-        bufs["color"] = np.ascontiguousarray(display.encode(bufs["color"]), dtype=np.float32)
-        return bufs
-
-    def _step(self, b: dict, w: int, h: int, far: float):
-        if self._grid is None or (self._grid.w, self._grid.h) != (w, h):
-            self._grid = K.Grid(w, h)
-        out, terms = smaa(self._grid, b["color"], self.params)
-        self._terms = terms
-        return out
-
-    def debug_terms(self) -> dict[str, np.ndarray]:
-        """Per-pixel intermediates of the last frame, (H, W) each: luma, edge_left, edge_top (0/1),
-        weight_r, weight_g, weight_b, weight_a (the blending weights) and diagonal (1 where the
-        top-edge weights came from the diagonal pass)."""
-        h, w = self._shape
-        return {k: np.asarray(v, np.float32).reshape(h, w).copy() for k, v in self._terms.items()}
+    @staticmethod
+    def kernel(grid, rgb, params):
+        return smaa(grid, rgb, params)
 
 
 # ------------------------------------------------------------------------------ pass 1

@@ -189,14 +189,7 @@ class SparseTAA(BaselineTAA):
         best_i, velocity = self._velocity(grid, b)
         reject = self._rejection(grid, b, best_i, velocity)
         invalid = self._invalid(grid, b, velocity, reject)   # before the history changes
-        cs = K.rgb_to_ycocg(c) if p.box == "ycocg" else c
-        bmin, bmax, bavg = K.neighbourhood(grid, cs).averaged()
-        if p.variance_clip_gamma is not None:
-            vmin, vmax, bavg = K.variance_box(grid, cs, p.variance_clip_gamma)
-            if p.variance_intersect:
-                bmin, bmax = dr.maximum(bmin, vmin), dr.minimum(bmax, vmax)
-            else:
-                bmin, bmax = vmin, vmax
+        bmin, bmax, bavg = self._box(grid, c)
         blend, valid = resolve(p, grid, c, self._history, velocity, bmin, bmax, reject)
         # -- the sparse supersampling composite -------------------------------------------------
         need = np.asarray(invalid, dtype=bool).reshape(h, w)
