@@ -15,14 +15,7 @@ from references.exr import read_exr, write_exr
 
 def write_text_atomic(path: Path, text: str) -> bool:
     """Write only if the content changed (so untouched artefacts keep their times); True if written."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    if path.exists() and path.read_text() == text:
-        return False
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".part")
-    with os.fdopen(fd, "w") as f:
-        f.write(text)
-    os.replace(tmp, path)
-    return True
+    return write_bytes_atomic(path, text.encode())
 
 
 def write_bytes_atomic(path: Path, data: bytes) -> bool:
