@@ -43,6 +43,16 @@ class Reference:
         return getattr(self, "_history", [])
 
 
+def _welford(mean, m2, x, n):
+    """Running mean and sum of squared deviations after the n-th sample x (in place after the first)."""
+    if mean is None:
+        return x.copy(), np.zeros_like(x)
+    d = x - mean
+    mean += d / n
+    m2 += d * (x - mean)
+    return mean, m2
+
+
 def _display_noise_db(var_sum: np.ndarray, n: int) -> float:
     mse = float(np.mean(var_sum / max(n - 1, 1) / n))
     return float("inf") if mse == 0 else 10 * math.log10(1.0 / mse)
@@ -82,21 +92,11 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
         if not np.all(np.isfinite(img)):
             raise ReferenceError(f"scene {scene.name!r} frame {t}: pass {n} produced NaN/Inf")
         n += 1
-        if mean is None:
-            mean, m2 = img.copy(), np.zeros_like(img)
-        else:
-            d = img - mean
-            mean += d / n
-            m2 += d * (img - mean)
+        mean, m2 = _welford(mean, m2, img, n)
         if disp is None:    # the key of one 64-spp pass is the converged key to many digits
             disp = DisplayTransform.from_reference(img)
-        enc = disp.encode(img)
-        if dmean is None:
-            dmean, dm2 = enc.copy(), np.zeros_like(enc)
-        else:
-            dd = enc - dmean
-            dmean += dd / n
-            dm2 += dd * (enc - dmean)
+        dmean, dm2 = _welford(dmean, dm2, disp.encode(img), n)
+        if n >= 2:
             noise_db = _display_noise_db(dm2, n)
             history.append((n * spp_per_pass, time.perf_counter() - start, noise_db))
         if progress:
