@@ -145,6 +145,21 @@ def build_params(cls: type, params: Any = None, feedback: str | None = None, **o
     return dataclasses.replace(p, **overrides) if overrides else p
 
 
+@dataclass(frozen=True)
+class Inputs:
+    """What a technique takes, as a render pass declares its inputs (module docstring)."""
+    buffers: frozenset          # raster buffers read
+    sampling: str               # 'centre' | 'sequence' | 'supersample'
+    display: bool               # the frame's DisplayTransform (built from the reference)
+    cameras: bool               # current and previous camera states
+    extra_samples: int          # supersampled samples per pixel its mask asks for (0: none)
+    subframes: int              # jittered sub-frames per output ('supersample'), else 1
+
+    def shaded_samples(self, extra_fraction: float = 0.0) -> float:
+        """Samples shaded per pixel per output frame; `extra_fraction`: share of masked pixels."""
+        return float(self.subframes) + self.extra_samples * extra_fraction
+
+
 class Technique:
     """Base class: buffer validation, non-finite input repair, NumPy <-> Dr.Jit, history reset."""
 
@@ -153,6 +168,17 @@ class Technique:
     Params: ClassVar[type] = TAAParams
     sampling: ClassVar[str] = "centre"        # one of SAMPLING_MODES (module docstring)
     output_space: ClassVar[str] = "linear"    # one of OUTPUT_SPACES (module docstring)
+    needs_cameras: bool = False               # process(..., cameras=(current, previous))
+    supersampling: bool = False               # process(..., supersampled=, mask=) (sparse SS)
+
+    @property
+    def inputs(self) -> "Inputs":
+        """Everything a driver must hand this technique, declared in one place."""
+        n = int(getattr(self.params, "samples", 1))
+        return Inputs(buffers=frozenset(self.needs), sampling=self.sampling,
+                      display=self.output_space == "display", cameras=bool(self.needs_cameras),
+                      extra_samples=n if self.supersampling else 0,
+                      subframes=n if self.sampling == "supersample" else 1)
 
     def __init__(self, params=None, *, feedback: str | None = None, **overrides):
         self.params = build_params(self.Params, params, feedback, **overrides)

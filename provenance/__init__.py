@@ -1,0 +1,101 @@
+"""Content keys: one function builds every cache key from what determines the artefact.
+
+A key is `task_key(kind, data, inputs, code)`:
+  data    plain values (parameters, resolutions, schedules), tokenised by Dask's `tokenize`
+          (deterministic for dicts, tuples, NumPy arrays and dataclasses);
+  inputs  the keys of the artefacts the task reads (a reference's key, a run's key), so a changed
+          input changes every key downstream of it;
+  code    modules, classes or functions whose source produced it. `code_token` hashes the source
+          files of those modules and, transitively, of every module they use that is not part of
+          Python or an installed package (those are pinned in pyproject.toml), so the project's own
+          code and a user's technique file both take part, wherever the file lives.
+"""
+from __future__ import annotations
+
+import hashlib
+import inspect
+import sys
+import sysconfig
+import types
+from functools import lru_cache
+from pathlib import Path
+
+from dask.base import tokenize
+
+_INSTALLED = tuple(str(Path(p).resolve()) for p in {sysconfig.get_paths()["stdlib"],
+                                                    sysconfig.get_paths()["purelib"],
+                                                    sysconfig.get_paths()["platlib"]})
+
+
+def _own_module(mod) -> bool:
+    """A module of the project or of the user: has a source file outside Python and site-packages."""
+    f = getattr(mod, "__file__", None)
+    if not f or not f.endswith(".py"):
+        return False
+    f = str(Path(f).resolve())
+    return not f.startswith(_INSTALLED)
+
+
+def _module_of(obj):
+    if isinstance(obj, types.ModuleType):
+        return obj
+    if isinstance(obj, str):
+        __import__(obj)
+        return sys.modules[obj]
+    return sys.modules.get(getattr(obj, "__module__", None) or "")
+
+
+@lru_cache(maxsize=None)
+def _closure(root: str) -> tuple[str, ...]:
+    """Names of the own modules `root` uses, itself included (what its globals refer to)."""
+    seen: set[str] = set()
+    todo = [root]
+    while todo:
+        name = todo.pop()
+        mod = sys.modules.get(name)
+        if name in seen or mod is None or not _own_module(mod):
+            continue
+        seen.add(name)
+        if name.endswith(".__init__") or hasattr(mod, "__path__"):
+            # a package's submodules are part of it once loaded
+            todo += [m for m in list(sys.modules) if m.startswith(name + ".")]
+        for v in list(vars(mod).values()):
+            m = v if isinstance(v, types.ModuleType) else sys.modules.get(getattr(v, "__module__", None) or "")
+            if m is not None and m.__name__ not in seen:
+                todo.append(m.__name__)
+    return tuple(sorted(seen))
+
+
+@lru_cache(maxsize=None)
+def _file_digest(path: str, mtime_ns: int) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def code_token(*objs) -> str:
+    """Hash of the source of the given modules/classes/functions and the own modules they use."""
+    names: set[str] = set()
+    for obj in objs:
+        mod = _module_of(obj)
+        if mod is None:
+            raise ValueError(f"cannot find the module of {obj!r} to key its code")
+        if not _own_module(mod):
+            continue
+        names.update(_closure(mod.__name__))
+    h = hashlib.sha256()
+    for name in sorted(names):
+        path = Path(sys.modules[name].__file__).resolve()
+        h.update(name.encode())
+        h.update(_file_digest(str(path), path.stat().st_mtime_ns).encode())
+    return h.hexdigest()[:16]
+
+
+def task_key(kind: str, data=None, inputs=(), code=()) -> str:
+    """The key of an artefact of `kind` made from `data`, the artefacts `inputs` and `code`."""
+    return f"{kind}-{tokenize(kind, data, sorted(inputs) if isinstance(inputs, set) else list(inputs), code_token(*code))[:20]}"
+
+
+def source_of(obj) -> str:
+    return inspect.getsource(obj)
+
+
+__all__ = ["task_key", "code_token", "tokenize"]
