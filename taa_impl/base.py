@@ -77,7 +77,9 @@ class TAAParams:
     k_max: float = FEEDBACK_PRESETS["thesis"][1]
     feedback_luma: tuple[float, float, float] = (0.25, 0.5, 0.25)  # INSIDE's (YCoCg Y) weights
     feedback_floor: float = 0.2      # lower bound of the luminance denominator (INSIDE)
-    clip_eps: float = 1e-8           # INSIDE's FLT_EPS added to the clip box half-size
+    clip_eps: float = 1e-8           # INSIDE's FLT_EPS added to the clip box half-size (absolute)
+    clip_tol: float = 1e-4           # plus this times the box's magnitude (kernels.clip_toward_centre);
+    #                                  0 = INSIDE's clip, whose decision float32 rounding makes
     sharpen: str = "xu"
     # Extensions beyond the seeds (spec section 7); every default is "off" = the baseline above.
     box: str = "minmax"                       # 'minmax': RGB box; 'ycocg': box and clip in YCoCg (Karis 2014)
@@ -96,6 +98,8 @@ class TAAParams:
         # eps > 0 keeps v/e finite for a zero-size box; floor > 0 keeps 0/0 out of the feedback.
         if not self.clip_eps > 0:
             raise ValueError("clip_eps must be > 0 (a zero-size box would divide by zero)")
+        if not (math.isfinite(self.clip_tol) and 0 <= self.clip_tol < 1):
+            raise ValueError(f"clip_tol must be in [0, 1), got {self.clip_tol}")
         if not self.feedback_floor > 0:
             raise ValueError("feedback_floor must be > 0")
         if len(self.feedback_luma) != 3:

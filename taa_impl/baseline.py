@@ -57,10 +57,11 @@ def resolve(params: TAAParams, grid: K.Grid, c, history, velocity, bmin, bmax, r
     h, valid = fetch_history(params, grid, history, velocity)
     if reject is not None:
         valid = valid & ~reject
+    eps, tol = params.clip_eps, params.clip_tol
     if params.box == "ycocg":
-        h = K.ycocg_to_rgb(K.clip_toward_centre(K.rgb_to_ycocg(h), bmin, bmax, params.clip_eps))
+        h = K.ycocg_to_rgb(K.clip_toward_centre(K.rgb_to_ycocg(h), bmin, bmax, eps, tol))
     else:
-        h = K.clip_toward_centre(h, bmin, bmax, params.clip_eps)
+        h = K.clip_toward_centre(h, bmin, bmax, eps, tol)
     k = K.feedback_weight(K.luminance(c, params.feedback_luma), K.luminance(h, params.feedback_luma),
                           params.k_min, params.k_max, params.feedback_floor)
     if params.tonemap_blend:

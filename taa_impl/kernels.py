@@ -270,16 +270,39 @@ def karis_blend_weight(c, h, k, weights):
     return kh / ((1.0 - k) * wc + kh)
 
 
-def clip_toward_centre(hist, bmin, bmax, eps: float):
-    """INSIDE's clip_aabb (spec §5 step 4): pull `hist` toward the box centre onto the box.
+def _max3(a):
+    return dr.maximum(dr.maximum(a.x, a.y), a.z) if isinstance(a, mi.Color3f) else a
 
-    e >= eps > 0, so a zero-size box gives a finite v/e; m == 0 (hist at the centre) leaves it."""
+
+def clip_toward_centre(hist, bmin, bmax, eps: float, tol: float = 0.0):
+    """INSIDE's clip_aabb (spec §5 step 4), made well conditioned in float32: pull `hist` toward
+    the box centre p onto the box widened by a tolerance tau, then clamp it into the box itself.
+
+        p = (bmax + bmin)/2,  half = (bmax - bmin)/2,  v = hist - p,
+        tau = eps + tol * (max_c |p_c| + max_c half_c),  e = half + tau,  m = max_c |v_c| / e_c,
+        h = p + v/m if m > 1 else hist;   result = clamp(h, bmin, bmax).
+
+    Why: INSIDE's eps (1e-8) is far below float32's resolution for colours of 0.1-1 (ulp 6e-8 at
+    1), so rounding decided its clip: a history on a box face rounded to m slightly above 1, and in
+    a zero-width channel (e = eps) 5e-8 of rounding gave m ~ 5 and dragged every channel five-fold
+    toward p. With tau relative to the box's magnitude (max-norm of centre plus half-size: the size
+    of the numbers whose rounding it must absorb; one scale for all channels since YCoCg channels
+    mix RGB), a history inside the box within tau is not clipped, and a channel narrower than tau
+    drives m only when the history is off it by more than tau, i.e. by a real colour difference,
+    which then clips as INSIDE's does. The clip's amplification of a change in v, |v|/e, is at
+    most ~1/tol. The clamp (1-Lipschitz) takes back the <= tau by which the widened box exceeds
+    the real one, so the history stays inside the neighbourhood's range as with INSIDE (no
+    negative colours from the tolerance); the result differs from INSIDE's clip by at most tau
+    per channel wherever INSIDE's is not itself decided by rounding. tol = 0: INSIDE's clip, then
+    the clamp (<= eps apart). eps > 0 keeps v/e finite for a zero-size box; m == 0 leaves hist."""
     p = (bmax + bmin) * 0.5
-    e = (bmax - bmin) * 0.5 + eps
+    half = (bmax - bmin) * 0.5
+    tau = eps
+    if tol != 0.0:
+        tau = eps + tol * (_max3(dr.abs(p)) + _max3(half))
     v = hist - p
-    a = dr.abs(v / e)
-    m = dr.maximum(dr.maximum(a.x, a.y), a.z) if isinstance(a, mi.Color3f) else a
-    return dr.select(m > 1.0, p + v / m, hist)
+    m = _max3(dr.abs(v / (half + tau)))
+    return dr.clip(dr.select(m > 1.0, p + v / m, hist), bmin, bmax)
 
 
 def feedback_weight(lum_c, lum_h, k_min: float, k_max: float, floor: float):
