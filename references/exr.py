@@ -1,13 +1,52 @@
 """OpenEXR I/O (float32, ZIP), written atomically: a temporary file in the same folder renamed
-into place, so a reader never sees a half-written image."""
+into place, so a reader never sees a half-written image.
+
+OpenEXR's Python binding prints some warnings (e.g. "Exception raised reading pixel data" for a
+truncated file) through Python's sys.stdout, which would corrupt a `--json` document. Each library
+call runs with sys.stdout captured; what it printed goes into the exception message if the call
+fails, else to stderr. (Its C core writes its own errors to stderr already.)
+"""
 from __future__ import annotations
 
+import contextlib
+import io
 import os
-import tempfile
+import secrets
+import sys
 from pathlib import Path
 
 import numpy as np
 import OpenEXR
+
+
+class ExrError(ValueError):
+    """An EXR file could not be read or written; the message names the file and the library's words."""
+
+
+def _call(what: str, path, fn):
+    """fn() with the library's stdout captured (see the module docstring)."""
+    said = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(said):
+            result = fn()
+    except Exception as exc:
+        note = f" (OpenEXR: {said.getvalue().strip()})" if said.getvalue().strip() else ""
+        raise ExrError(f"{path}: cannot {what} EXR file: {exc}{note}") from exc
+    if said.getvalue().strip():
+        print(f"{path}: OpenEXR: {said.getvalue().strip()}", file=sys.stderr)
+    return result
+
+
+def _new_temp(folder: Path, stem: str) -> Path:
+    """An empty file created with mode 0666 less the umask, like any file the user writes
+    (tempfile.mkstemp would give 0600, and os.replace keeps the mode)."""
+    while True:
+        tmp = folder / f"{stem}.{secrets.token_hex(6)}.exr.part"
+        try:
+            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+            return tmp
+        except FileExistsError:
+            continue
 
 
 def write_exr(path: Path | str, channels: dict[str, np.ndarray], header: dict | None = None) -> None:
@@ -17,10 +56,9 @@ def write_exr(path: Path | str, channels: dict[str, np.ndarray], header: dict | 
     h = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
     h.update(header or {})
     data = {k: np.ascontiguousarray(v, np.float32) for k, v in channels.items()}
-    fd, tmp = tempfile.mkstemp(suffix=".exr.part", dir=path.parent)
-    os.close(fd)
+    tmp = _new_temp(path.parent, path.stem)
     try:
-        OpenEXR.File(h, data).write(tmp)
+        _call("write", path, lambda: OpenEXR.File(h, data).write(str(tmp)))
         os.replace(tmp, path)
     finally:
         if os.path.exists(tmp):
@@ -29,5 +67,7 @@ def write_exr(path: Path | str, channels: dict[str, np.ndarray], header: dict | 
 
 def read_exr(path: Path | str) -> tuple[dict, dict[str, np.ndarray]]:
     """(header, channel name -> (H, W) float32 array)."""
-    f = OpenEXR.File(str(path), separate_channels=True)
-    return f.header(), {k: v.pixels for k, v in f.channels().items()}
+    def read():
+        f = OpenEXR.File(str(path), separate_channels=True)
+        return f.header(), {k: v.pixels for k, v in f.channels().items()}
+    return _call("read", path, read)

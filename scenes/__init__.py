@@ -4,10 +4,10 @@ from __future__ import annotations
 import os
 
 from .description import Scene
-from .meshes import MeshData, SceneError
+from .meshes import MeshData, SceneError, SceneWarning
 from .resolved import PROFILES, ResolvedScene
 
-__all__ = ["Scene", "ResolvedScene", "MeshData", "SceneError", "PROFILES", "get_scene", "builtin_names"]
+__all__ = ["Scene", "ResolvedScene", "MeshData", "SceneError", "SceneWarning", "PROFILES", "get_scene", "builtin_names"]
 
 
 def builtin_names() -> list[str]:

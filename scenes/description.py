@@ -3,6 +3,9 @@
 Units: world units for lengths, degrees for angles, linear Rec.709 RGB for colours. Animation is
 per frame (frame index t = 0, 1, ...): an object's pose at t is its base transform followed by
 `velocity * t` and a rotation of `spin_deg * t` about `spin_axis` through its own origin.
+
+Every number must be finite (TOML's `nan`/`inf` and JSON's `NaN`/`Infinity` are rejected) and every
+direction non-zero: such a value would otherwise reach the renderers as an empty or NaN image.
 """
 from __future__ import annotations
 
@@ -18,13 +21,33 @@ TRANSPORTS = ("unlit", "direct", "direct_shadows", "path")
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, arbitrary_types_allowed=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, arbitrary_types_allowed=True,
+                              allow_inf_nan=False)
+
+
+def _nonzero(v: Vec3) -> Vec3:
+    if not np.any(np.asarray(v, float)):
+        raise ValueError("must be a non-zero direction")
+    return v
+
+
+def _check_view(position: Vec3, target: Vec3) -> None:
+    f = np.subtract(target, position, dtype=float)
+    if not np.all(np.isfinite(f)):
+        raise ValueError(f"target - position overflows: position {position}, target {target}")
+    if np.allclose(f, 0):
+        raise ValueError(f"position {position} and target {target} coincide (no view direction)")
 
 
 class CameraCut(_Strict):
     frame: int = Field(ge=0)
     position: Vec3
     target: Vec3
+
+    @model_validator(mode="after")
+    def _check(self):
+        _check_view(self.position, self.target)
+        return self
 
 
 class Camera(_Strict):
@@ -42,9 +65,10 @@ class Camera(_Strict):
     def _check(self):
         if self.far <= self.near:
             raise ValueError(f"far ({self.far}) must be greater than near ({self.near})")
-        if np.allclose(np.subtract(self.position, self.target), 0):
-            raise ValueError("position and target coincide")
+        _check_view(self.position, self.target)
         return self
+
+    _up = field_validator("up")(_nonzero)
 
 
 class Texture(_Strict):
@@ -105,11 +129,22 @@ class Transform(_Strict):
     rotate_deg: float = 0.0
     scale: Vec3 = (1.0, 1.0, 1.0)
 
+    _axis = field_validator("rotate_axis")(_nonzero)
+
+    @field_validator("scale")
+    @classmethod
+    def _scale(cls, v):
+        if not np.all(np.asarray(v, float)):
+            raise ValueError("a zero scale component flattens the object to nothing")
+        return v
+
 
 class Motion(_Strict):
     velocity: Vec3 = (0.0, 0.0, 0.0)      # world units per frame
     spin_axis: Vec3 = (0.0, 1.0, 0.0)
     spin_deg: float = 0.0                 # degrees per frame about the object's origin
+
+    _axis = field_validator("spin_axis")(_nonzero)
 
 
 class SceneObject(_Strict):
@@ -124,6 +159,8 @@ class DirectionalLight(_Strict):
     type: Literal["directional"] = "directional"
     direction: Vec3                       # direction the light travels
     intensity: RGB = (1.0, 1.0, 1.0)
+
+    _direction = field_validator("direction")(_nonzero)
 
 
 class PointLight(_Strict):

@@ -12,13 +12,31 @@ from .meshes import SceneError
 from .resolved import ResolvedScene
 
 
-def _format(path: str, err: ValidationError) -> str:
+def field_path(loc: tuple, data) -> str:
+    """`lights[0].intensity[1]` from pydantic's loc. Steps that are not in the data (the tag of a
+    discriminated union, such as 'directional') are dropped by walking the raw input alongside."""
+    out, node = "", data
+    for i, step in enumerate(loc):
+        if isinstance(step, int) and isinstance(node, (list, tuple)):
+            out += f"[{step}]"
+            node = node[step] if -len(node) <= step < len(node) else None
+        elif isinstance(node, dict) and step not in node and (
+                step in node.values() or (i + 1 < len(loc) and loc[i + 1] in node)):
+            continue
+        else:
+            out += f".{step}" if out else str(step)
+            node = node.get(step) if isinstance(node, dict) else None
+    return out or "(top level)"
+
+
+def _format(path: str, err: ValidationError, data) -> str:
     lines = [f"{path}: invalid scene description"]
     for e in err.errors():
-        loc = ".".join(str(p) for p in e["loc"]) or "(top level)"
+        loc = field_path(e["loc"], data)
         val = e.get("input")
         shown = repr(val) if not isinstance(val, dict) else "{...}"
-        lines.append(f"  field {loc}: {e['msg']} (value: {shown[:80]})")
+        msg = e["msg"].removeprefix("Value error, ")
+        lines.append(f"  field {loc}: {msg} (value: {shown[:80]})")
     return "\n".join(lines)
 
 
@@ -26,7 +44,7 @@ def parse(data: dict, where: str) -> Scene:
     try:
         return Scene.model_validate(data)
     except ValidationError as err:
-        raise SceneError(_format(where, err)) from None
+        raise SceneError(_format(where, err, data)) from None
 
 
 def load_scene_file(path: str) -> ResolvedScene:
@@ -43,7 +61,4 @@ def load_scene_file(path: str) -> ResolvedScene:
     except (tomllib.TOMLDecodeError, json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise SceneError(f"{path}: cannot parse: {exc}") from None
     desc = parse(data, path)
-    try:
-        return ResolvedScene(desc, base_dir=os.path.dirname(os.path.abspath(path)))
-    except SceneError as exc:
-        raise SceneError(f"{path}: {exc}") from None
+    return ResolvedScene(desc, base_dir=os.path.dirname(os.path.abspath(path)), source=path)

@@ -2,7 +2,10 @@
 where UVs or normals are discontinuous, so every attribute is per vertex."""
 from __future__ import annotations
 
+import codecs
+import io
 import os
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -12,6 +15,24 @@ from .description import MeshSpec
 
 class SceneError(ValueError):
     """A scene description or one of its assets is invalid; the message names the culprit."""
+
+
+class SceneWarning(UserWarning):
+    """Something in a scene is suspect but renderable (e.g. some zero-area triangles)."""
+
+
+# A triangle whose doubled area is below this fraction of its longest edge squared is a line or a
+# point: float64 rounding of exactly collinear vertices gives ~1e-16, a visible sliver far more.
+DEGENERATE_REL = 1e-12
+
+
+def degenerate_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Boolean mask of the faces with (numerically) zero area."""
+    t = vertices[faces]
+    e1, e2, e3 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0], t[:, 2] - t[:, 1]
+    area2 = np.linalg.norm(np.cross(e1, e2), axis=1)
+    longest2 = np.max([np.einsum("ij,ij->i", e, e) for e in (e1, e2, e3)], axis=0)
+    return area2 <= DEGENERATE_REL * longest2
 
 
 @dataclass(frozen=True)
@@ -34,6 +55,13 @@ class MeshData:
         for name, a, k in (("uvs", self.uvs, 2), ("normals", self.normals, 3)):
             if a is not None and (a.shape != (len(v), k) or not np.all(np.isfinite(a))):
                 raise SceneError(f"{where}: {name} must be finite with shape ({len(v)}, {k})")
+        bad = degenerate_faces(v, f)
+        if bad.all():
+            raise SceneError(f"{where}: all {len(f)} triangles are degenerate (zero area), "
+                             "so the object would not be drawn")
+        if bad.any():
+            warnings.warn(f"{where}: {int(bad.sum())} of {len(f)} triangles are degenerate "
+                          "(zero area) and cover no pixel", SceneWarning, stacklevel=2)
         return self
 
 
@@ -91,17 +119,28 @@ def cylinder(radius=0.5, height=1.0, segments=32, smooth=True, uv_scale=(1.0, 1.
     return MeshData(v, np.array(faces), uv, np.concatenate([ring, ring]) if smooth else None)
 
 
-def load_file(path: str, smooth: bool, base_dir: str | None) -> MeshData:
+def load_file(path: str, smooth: bool, base_dir: str | None, where: str = "mesh") -> MeshData:
     import trimesh
     full = path if os.path.isabs(path) or base_dir is None else os.path.join(base_dir, path)
     if not os.path.isfile(full):
-        raise SceneError(f"mesh file not found: {full}")
+        raise SceneError(f"{where}: mesh file not found: {full}")
     try:
-        loaded = trimesh.load(full, force="mesh", process=False)
+        # trimesh decodes text formats as UTF-8 and falls back on charset-normalizer's guess, so
+        # an OBJ written in Latin-1 or cp1252 (a byte >= 0x80 in a comment or a name) loads too.
+        # A UTF-8 byte-order mark would survive that decoding and hide the first line's keyword.
+        with open(full, "rb") as fh:
+            bom = fh.read(3) == codecs.BOM_UTF8
+        if bom and full.lower().endswith(".obj"):
+            with open(full, "rb") as fh:
+                body = io.BytesIO(fh.read()[3:])
+            loaded = trimesh.load(body, file_type="obj", force="mesh", process=False,
+                                  resolver=trimesh.resolvers.FilePathResolver(full))
+        else:
+            loaded = trimesh.load(full, force="mesh", process=False)
     except Exception as exc:
-        raise SceneError(f"cannot read mesh file {full}: {exc}") from exc
+        raise SceneError(f"{where}: cannot read mesh file {full}: {exc}") from exc
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
-        raise SceneError(f"mesh file {full} holds no triangles")
+        raise SceneError(f"{where}: mesh file {full} holds no triangles")
     uv = getattr(loaded.visual, "uv", None)
     uv = None if uv is None or len(uv) != len(loaded.vertices) else np.asarray(uv, float)
     normals = np.asarray(loaded.vertex_normals, float) if smooth else None
@@ -119,7 +158,8 @@ def build(spec: MeshSpec, where: str, base_dir: str | None = None) -> MeshData:
     elif k == "cylinder":
         m = cylinder(spec.size[0], spec.size[1], spec.segments, spec.smooth, spec.uv_scale)
     elif k == "file":
-        m = load_file(spec.path, spec.smooth, base_dir)
+        m = load_file(spec.path, spec.smooth, base_dir, where)
+        where = f"{where} (file {spec.path})"
     else:
         m = MeshData(np.asarray(spec.vertices, float), np.asarray(spec.faces, np.int64),
                      None if spec.uvs is None else np.asarray(spec.uvs, float),

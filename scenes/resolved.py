@@ -59,14 +59,16 @@ def build_texture(tex: Texture, where: str, base_dir: str | None) -> np.ndarray:
 class ResolvedScene:
     desc: Scene
     base_dir: str | None = None
+    source: str | None = None        # the scene file, named in errors and warnings
     meshes: list[MeshData] = field(init=False)
     textures: list[np.ndarray | None] = field(init=False)   # albedo texture per object
     alphas: list[np.ndarray | None] = field(init=False)     # alpha texture per object (H, W)
 
     def __post_init__(self):
         self.meshes, self.textures, self.alphas = [], [], []
+        pre = f"{self.source}: " if self.source else ""
         for i, obj in enumerate(self.desc.objects):
-            where = f"objects[{i}] ({obj.name!r})"
+            where = f"{pre}objects[{i}] ({obj.name!r})"
             m = meshes.build(obj.mesh, f"{where}.mesh", self.base_dir)
             mat = obj.material
             if (mat.texture is not None or mat.alpha is not None) and m.uvs is None:
@@ -77,6 +79,32 @@ class ResolvedScene:
             alpha = None if mat.alpha is None else \
                 build_texture(mat.alpha, f"{where}.material.alpha", self.base_dir)
             self.alphas.append(None if alpha is None else alpha.mean(axis=-1))
+        self._check_animation(pre)
+
+    def _check_animation(self, pre: str) -> None:
+        """Every frame must have a camera and finite object positions. The description validates
+        single values; this catches their combination over time (a camera that moves onto its
+        target, up parallel to the view, velocity * t overflowing) before anything renders."""
+        for t in range(self.desc.frames):
+            pos, tgt = self._camera_pos_target(t)
+            f = tgt - pos
+            if not np.all(np.isfinite(f)) or np.allclose(f, 0):
+                raise SceneError(f"{pre}camera: at frame {t} position {tuple(pos)} and target "
+                                 f"{tuple(tgt)} give no view direction")
+            try:
+                to_world = look_at(pos, tgt, self.desc.camera.up)
+            except ValueError as exc:
+                raise SceneError(f"{pre}camera: at frame {t}: {exc}") from None
+            if not np.all(np.isfinite(to_world)):
+                raise SceneError(f"{pre}camera: at frame {t} the pose is not finite")
+        last = self.desc.frames - 1
+        for i, obj in enumerate(self.desc.objects):
+            for t in {0, last}:
+                with np.errstate(over="ignore", invalid="ignore"):
+                    finite = np.all(np.isfinite(self.world_vertices(i, t)))
+                if not finite:
+                    raise SceneError(f"{pre}objects[{i}] ({obj.name!r}): world positions overflow "
+                                     f"at frame {t} (transform/motion too large)")
 
     @property
     def name(self) -> str:
@@ -113,15 +141,18 @@ class ResolvedScene:
         mo = self.desc.objects[i].motion
         return not any(mo.velocity) and not mo.spin_deg
 
-    def camera(self, t: int, width: int, height: int) -> CameraState:
+    def _camera_pos_target(self, t: int) -> tuple[np.ndarray, np.ndarray]:
         c = self.desc.camera
         pos, tgt, t0 = np.asarray(c.position, float), np.asarray(c.target, float), 0
         for cut in sorted(c.cuts, key=lambda k: k.frame):
             if cut.frame <= t:
                 pos, tgt, t0 = np.asarray(cut.position, float), np.asarray(cut.target, float), cut.frame
         dt = t - t0
-        pos = pos + np.asarray(c.velocity, float) * dt
-        tgt = tgt + np.asarray(c.target_velocity, float) * dt
+        return pos + np.asarray(c.velocity, float) * dt, tgt + np.asarray(c.target_velocity, float) * dt
+
+    def camera(self, t: int, width: int, height: int) -> CameraState:
+        c = self.desc.camera
+        pos, tgt = self._camera_pos_target(t)
         return CameraState(look_at(pos, tgt, c.up), c.yfov_deg, c.near, c.far, width, height)
 
     def is_cut(self, t: int) -> bool:

@@ -61,7 +61,7 @@ def test_bad_value_names_file_field_and_value(tmp_path):
     with pytest.raises(SceneError) as e:
         load_scene_file(str(tmp_path / "bad.toml"))
     msg = str(e.value)
-    assert "bad.toml" in msg and "objects.0.material.albedo" in msg and "'red'" in msg
+    assert "bad.toml" in msg and "objects[0].material.albedo" in msg and "'red'" in msg
 
 
 def test_negative_frames_and_unknown_field(tmp_path):
