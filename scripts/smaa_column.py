@@ -6,16 +6,23 @@ the display transform from that reference, then SMAA (and, for context, No AA an
 display image, PSNR as study.metrics computes it.
 
     .venv/bin/python scripts/smaa_column.py [--scenes a,b,...] [--size 320x180]
-        [--param name=value ...] [--json out.json]
+        [--param name=value ...] [--baseline GIT_REV] [--refs DIR] [--json out.json]
 
 `--param` overrides an SMAAParams field (e.g. --param area=exact), to compare variants.
+`--baseline REV` also runs the SMAA of that git revision (its taa_impl/smaa*.py with the kernels
+it was written against) on the same frames and references, and prints the difference: references
+are keyed by the reference code, so a column measured on another day may rest on other references.
+`--refs DIR` reads the references from DIR/<scene>.exr (copies of cached references) instead of
+the cache, to pin them across code changes.
 """
 from __future__ import annotations
 
 import argparse
 import dataclasses
 import json
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -60,11 +67,45 @@ def parse_params(items: list[str]) -> dict:
     return out
 
 
+def revision_smaa(rev: str):
+    """The SMAA technique as it was at git revision `rev`, imported as a separate package."""
+    root = Path(__file__).resolve().parent.parent
+    pkg = Path(tempfile.mkdtemp(prefix="smaa_rev_")) / "taa_impl_rev"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    for name in ("smaa.py", "smaa_area.py", "kernels.py", "base.py", "sanitize.py"):
+        got = subprocess.run(["git", "-C", str(root), "show", f"{rev}:taa_impl/{name}"],
+                             capture_output=True, text=True)
+        if got.returncode != 0:
+            fail(f"--baseline {rev!r}: cannot read taa_impl/{name} there ({got.stderr.strip()})")
+        (pkg / name).write_text(got.stdout)
+    sys.path.insert(0, str(pkg.parent))
+    import importlib
+    return importlib.import_module("taa_impl_rev.smaa").SMAA()
+
+
+def pinned_reference(path: Path, shape):
+    import numpy as np
+    from references.exr import read_exr
+    if not path.is_file():
+        fail(f"--refs: no reference file {path}")
+    try:
+        _, ch = read_exr(path)
+        img = np.stack([ch[c] for c in "RGB"], -1).astype(np.float32)
+    except Exception as exc:   # any unreadable file is the user's input error here
+        fail(f"--refs: cannot read {path}: {exc}")
+    if img.shape != shape:
+        fail(f"--refs: {path} is {img.shape[1]}x{img.shape[0]}, expected {shape[1]}x{shape[0]}")
+    return img
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenes", default=",".join(DEFAULT_SCENES))
     ap.add_argument("--size", default="320x180")
     ap.add_argument("--param", action="append", default=[])
+    ap.add_argument("--baseline", metavar="GIT_REV")
+    ap.add_argument("--refs", type=Path, metavar="DIR")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args(argv)
     w, h = parse_size(args.size)
@@ -89,15 +130,21 @@ def main(argv=None) -> int:
     target = PROFILES["quick"].target_noise_db
     techs = {"No AA": taa_impl.make("noaa"), "FXAA": taa_impl.make("fxaa"),
              "SMAA": taa_impl.make("smaa", **overrides)}
+    if args.baseline:
+        techs["SMAA@base"] = revision_smaa(args.baseline)
     rows = {}
     print(f"# {w}x{h}, static test frame t=0, PSNR (dB, 8-bit display) vs the Mitsuba reference;"
           f" SMAA overrides {overrides or 'none'}")
-    print(f"{'scene':<16} {'No AA':>7} {'FXAA':>7} {'SMAA':>7}  {'SMAA s':>6}")
+    base = f" {'SMAA@' + args.baseline[:8]:>14} {'change':>7}" if args.baseline else ""
+    print(f"{'scene':<16} {'No AA':>7} {'FXAA':>7} {'SMAA':>7}{base}  {'SMAA s':>6}")
     for name in names:
         scene = get_scene(name)
-        ref, _ = cache.get(scene, 0, w, h, target_noise_db=target)
-        dt = DisplayTransform.from_reference(ref.image)
-        ref8 = dt.to_8bit(ref.image)
+        if args.refs:
+            ref_img = pinned_reference(args.refs / f"{name}.exr", (h, w, 3))
+        else:
+            ref_img = cache.get(scene, 0, w, h, target_noise_db=target)[0].image
+        dt = DisplayTransform.from_reference(ref_img)
+        ref8 = dt.to_8bit(ref_img)
         raster = Rasterizer(scene, w, h)
         try:
             frame = raster.render(0, (0.0, 0.0), ("color",), prev_t=0)
@@ -117,10 +164,13 @@ def main(argv=None) -> int:
             if label == "SMAA":
                 row["smaa_seconds"] = secs
         rows[name] = row
-        print(f"{name:<16} {row['No AA']:7.2f} {row['FXAA']:7.2f} {row['SMAA']:7.2f}  "
+        extra = (f" {row['SMAA@base']:14.2f} {row['SMAA'] - row['SMAA@base']:+7.2f}"
+                 if args.baseline else "")
+        print(f"{name:<16} {row['No AA']:7.2f} {row['FXAA']:7.2f} {row['SMAA']:7.2f}{extra}  "
               f"{row['smaa_seconds']:6.2f}", flush=True)
     if args.json:
-        args.json.write_text(json.dumps({"size": [w, h], "overrides": overrides, "rows": rows}, indent=1))
+        args.json.write_text(json.dumps({"size": [w, h], "overrides": overrides,
+                                              "baseline": args.baseline, "rows": rows}, indent=1))
     return 0
 
 
