@@ -80,8 +80,8 @@ def _oracle_module():
 
 def bytes_per_pixel(tech) -> int:
     state = int(getattr(tech, "history_bytes_per_pixel", 0))
-    frames = int(tech.params.samples) if getattr(tech, "sampling", "") == "supersample" else 1
-    return frames * sum(BYTES.get(b, 4) for b in tech.needs) + state + 12   # + the output
+    inp = tech.inputs
+    return inp.subframes * sum(BYTES.get(b, 4) for b in inp.buffers) + state + 12   # + the output
 
 
 def _extra_inputs(tech, frame, width, height) -> dict:
@@ -89,13 +89,14 @@ def _extra_inputs(tech, frame, width, height) -> dict:
     from display import DisplayTransform
     from scenes.camera import CameraState, look_at
     kw = {}
-    if getattr(tech, "output_space", "linear") == "display":
+    inp = tech.inputs
+    if inp.display:
         kw["display"] = DisplayTransform.from_reference(frame["color"])
-    if getattr(tech, "needs_cameras", False):
+    if inp.cameras:
         cam = CameraState(look_at((0, 0, 5), (0, 0, 0), (0, 1, 0)), 45.0, 0.1, 100.0, width, height)
         prev = CameraState(look_at((0.02, 0, 5), (0, 0, 0), (0, 1, 0)), 45.0, 0.1, 100.0, width, height)
         kw["cameras"] = (cam, prev)
-    if getattr(tech, "supersampling", False):   # the extra samples' shading is raster work, not timed here
+    if inp.extra_samples:   # the extra samples' shading is raster work, not timed here
         kw["supersampled"] = frame["color"]
         kw["mask"] = tech.invalid_mask(frame, far=100.0)
     return kw
@@ -104,9 +105,9 @@ def _extra_inputs(tech, frame, width, height) -> dict:
 def _kernel_only(tech, frame, width, height):
     """The Dr.Jit part alone on inputs already on the device, for plain TAAs; None otherwise."""
     from taa_impl.base import to_drjit
-    plain = not (getattr(tech, "needs_cameras", False) or getattr(tech, "supersampling", False)
-                 or getattr(tech, "output_space", "linear") == "display")
-    if not plain or not hasattr(tech, "_step") or getattr(tech, "sampling", "sequence") != "sequence":
+    inp = tech.inputs
+    plain = not (inp.cameras or inp.extra_samples or inp.display)
+    if not plain or not hasattr(tech, "_step") or inp.sampling != "sequence":
         return None
     bufs = to_drjit({k: frame[k] for k in tech.needs})
     dr.eval(bufs)
@@ -132,9 +133,8 @@ def bench(width: int, height: int, repeats: int = 7, techniques=None, numpy_repe
         tech = taa_impl.make(name)
         log(f"timing {name} ...")
         kw = _extra_inputs(tech, frame, width, height)
-        sampling = getattr(tech, "sampling", "sequence")
-        if sampling == "supersample":
-            subs = [frame] * int(tech.params.samples)
+        if tech.inputs.sampling == "supersample":
+            subs = [frame] * tech.inputs.subframes
             out["end_to_end_ms"][name] = _median_ms(lambda: tech.process_samples(subs), repeats)
             out["techniques"][name] = {"ms": out["end_to_end_ms"][name]}
         else:

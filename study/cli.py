@@ -19,7 +19,7 @@ def _scene_and_size(name: str, profile: str, width: int | None, height: int | No
         w, h = scene.resolution(profile)
     except SceneError as exc:
         _fail(str(exc))
-    return scene, width or w, height or h
+    return scene, (w if width is None else width), (h if height is None else height)
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -42,7 +42,7 @@ def scenes(as_json):
                      "triangles": int(sum(len(m.faces) for m in s.meshes)), "lights": len(d.lights),
                      "transport": d.transport, "features": d.features(), "stresses": d.stresses})
     if as_json:
-        click.echo(json.dumps(rows, indent=2))
+        click.echo(_strict_json(rows))
         return
     for r in rows:
         click.echo(f"{r['name']:16s} {r['frames']:4d} frames  quick {r['width']}x{r['height']}  "
@@ -74,9 +74,10 @@ def _print_agreement(a) -> None:
 @click.option("--all", "all_builtin", is_flag=True, help="Every built-in scene.")
 @click.option("--frame", default=0, show_default=True, help="Frame index of the scene's animation.")
 @click.option("--profile", type=click.Choice(["quick", "full"]), default="quick", show_default=True)
-@click.option("--width", type=int, help="Override the profile's width.")
-@click.option("--height", type=int, help="Override the profile's height.")
-@click.option("--samples", default=256, show_default=True, help="Jittered raster frames averaged.")
+@click.option("--width", type=click.IntRange(min=8), help="Override the profile's width.")
+@click.option("--height", type=click.IntRange(min=8), help="Override the profile's height.")
+@click.option("--samples", default=256, show_default=True, type=click.IntRange(min=1),
+              help="Jittered raster frames averaged.")
 @click.option("--target-noise-db", default=60.0, show_default=True,
               help="Reference convergence target (display-domain noise PSNR).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object (a list with several scenes).")
@@ -104,7 +105,7 @@ def agree(scene_names, all_builtin, frame, profile, width, height, samples, targ
             _print_agreement(a)
     if as_json:
         out = [a.as_dict() for a in results]
-        click.echo(json.dumps(out[0] if len(out) == 1 else out))
+        click.echo(_strict_json(out[0] if len(out) == 1 else out))
     if not all(all(a.meets_targets().values()) for a in results):
         sys.exit(1)
 
@@ -113,8 +114,8 @@ def agree(scene_names, all_builtin, frame, profile, width, height, samples, targ
 @click.option("--scene", "scene_name", required=True, help="Built-in scene name or scene file.")
 @click.option("--frame", default=0, show_default=True)
 @click.option("--profile", type=click.Choice(["quick", "full"]), default="quick", show_default=True)
-@click.option("--width", type=int)
-@click.option("--height", type=int)
+@click.option("--width", type=click.IntRange(min=8), help="Override the profile's width.")
+@click.option("--height", type=click.IntRange(min=8), help="Override the profile's height.")
 @click.option("--jitter", nargs=2, type=float, default=(0.0, 0.0), show_default=True,
               help="Sub-pixel offset (ox, oy) of the raster frame's sample.")
 @click.option("--buffers", default="color,albedo,depth,object_id,motion", show_default=True,
@@ -166,37 +167,72 @@ def render(scene_name, frame, profile, width, height, jitter, buffers, no_refere
     click.echo(f"wrote {len(list(out.glob(stem + '*')))} files to {out}/")
 
 
-@main.command()
-@click.option("--profile", type=click.Choice(["quick", "full"]), default="quick", show_default=True)
-@click.option("--scenes", "scene_list", default="", help="Comma-separated scenes (default: every built-in).")
-@click.option("--techniques", "tech_list", multiple=True,
-              help="Technique as 'name' or 'Label=name:field=value,...' (repeatable; default: the thesis's set).")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
-              help="Output folder (default: out/<profile>).")
-@click.option("--no-agreement", is_flag=True, help="Skip the per-scene reference agreement figure.")
-def run(profile, scene_list, tech_list, out_dir, no_agreement):
-    """Run the static and ghosting tests and write tables, maps and plots (make-style)."""
-    import time as _time
-    from pathlib import Path
+def _scene_list(ctx, param, value):
+    """Comma-separated scenes: empty items refused, duplicates dropped with a note."""
+    if value is None:
+        return None
+    items = [v.strip() for v in value.split(",")]
+    if not any(items) or any(not v for v in items):
+        raise click.BadParameter(f"{value!r} names an empty scene; give comma-separated scene names or files")
+    out = list(dict.fromkeys(items))
+    if len(out) < len(items):
+        dup = sorted({v for v in items if items.count(v) > 1})
+        click.echo(f"note: {param.opts[0]}: duplicate scene(s) {', '.join(dup)} taken once", err=True)
+    return out
 
-    from scenes import SceneError, builtin_names, get_scene
+
+def _executor(workers, threads, scheduler):
+    from study.execute import Executor
+    if scheduler and workers:
+        _fail("give either --workers N (a local cluster) or --scheduler ADDRESS, not both")
+    if scheduler:
+        return Executor("scheduler", address=scheduler, threads=threads)
+    if workers:
+        return Executor("local", workers=workers, threads=threads)
+    return Executor("in-process", threads=threads)
+
+
+def _strict_json(obj) -> str:
+    """One strict JSON document: NaN and infinities (undefined or unbounded figures) become null."""
+    import math
+
+    def clean(o):
+        if isinstance(o, float) and not math.isfinite(o):
+            return None
+        if isinstance(o, dict):
+            return {str(k): clean(v) for k, v in o.items()}
+        if isinstance(o, (list, tuple)):
+            return [clean(v) for v in o]
+        return o
+    return json.dumps(clean(obj), allow_nan=False, default=str)
+
+
+EXECUTION_OPTIONS = [
+    click.option("--workers", type=click.IntRange(min=1), default=None,
+                 help="Run the tasks on a local Dask cluster of N worker processes."),
+    click.option("--threads", type=click.IntRange(min=1), default=None,
+                 help="Dr.Jit threads per process (default: all cores)."),
+    click.option("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                 help="Run the tasks on an existing Dask scheduler (the cache must be on a filesystem every "
+                      "worker sees)."),
+]
+
+
+def _execution_options(f):
+    for opt in reversed(EXECUTION_OPTIONS):
+        f = opt(f)
+    return f
+
+
+def _techniques(tech_list):
     from study.config import DEFAULT_TECHNIQUES, TechniqueConfig, available
-    from study.report import Report
-    from study.run import Study, is_animated
-
-    start = _time.perf_counter()
-    names = [s.strip() for s in scene_list.split(",") if s.strip()] or builtin_names()
     try:
         configs = [TechniqueConfig.parse(t) for t in tech_list] if tech_list else list(DEFAULT_TECHNIQUES)
-        scenes_ = [get_scene(n) for n in names]
-    except (SceneError, ValueError) as exc:
+    except ValueError as exc:
         _fail(str(exc))
     configs, missing = available(configs)
     if tech_list and missing:
         _fail(f"unknown technique(s): {', '.join(c.name for c in missing)}")
-    for c in missing:
-        click.echo(f"note: technique {c.name!r} ({c.label}) is not implemented yet; its column is left out",
-                   err=True)
     labels = [c.label for c in configs]
     if len(set(labels)) != len(labels):
         _fail(f"technique labels must be unique, got {labels}")
@@ -205,58 +241,114 @@ def run(profile, scene_list, tech_list, out_dir, no_agreement):
             c.make()
     except (TypeError, ValueError, KeyError) as exc:
         _fail(f"bad technique parameters: {exc}")
+    return configs
 
-    study = Study(profile)
-    out = Path(out_dir or f"out/{profile}")
-    report = Report(out)
-    statics, ghosts = [], []
-    for scene in scenes_:
-        agree = None if no_agreement else study.agreement(scene)
-        s = study.run_test(scene, "static", configs)
-        report.static(s, agree, lambda name, t, w, h, sc=scene: study.reference(sc, t, w, h))
-        statics.append(s)
-        if is_animated(scene):
-            g = study.run_test(scene, "ghosting", configs)
-            report.ghosting(g, agree)
-            ghosts.append(g)
-    if not tech_list:   # the default study also sweeps sparse supersampling's threshold
-        from study.config import SPARSE_SWEEP
-        sweep = [c for c in SPARSE_SWEEP if c.name in __import__("taa_impl").TECHNIQUES]
-        for scene in scenes_:
-            if scene.name in study.profile.sweep_scenes and sweep:
-                report.sparse_cost([study.run_test(scene, "ghosting" if is_animated(scene) else "static", sweep)],
-                                   stem="sparse_sweep_" + scene.name,
-                                   title=f"Sparse supersampling: mu against cost and quality ({scene.name})")
-    report.headline(statics)
-    report.reproduction(statics, ghosts)
-    report.speed_error(statics)
-    report.sparse_cost(statics + ghosts)
-    report.convergence({s.scene: study.reference(sc, 0, s.width, s.height) for s, sc in zip(statics, scenes_)})
-    summary = {**study.stats, "seconds": round(_time.perf_counter() - start, 2), "profile": profile,
-               "scenes": names, "techniques": labels}
+
+def _load_scenes(names):
+    from scenes import SceneError
+    from study.tasks import load_scene
+    try:
+        return [load_scene(n) for n in names]
+    except SceneError as exc:
+        _fail(str(exc))
+
+
+def run_study(profile, names, configs, out_dir, no_agreement, executor, sweep=True):
+    """The study end to end: plan and execute its tasks, then write its report. Returns the folder."""
+    import time as _time
+    from pathlib import Path
+
+    from study.config import SPARSE_SWEEP, THESIS_HISTORY
+    from study.report import Report
+    from study.run import Study
+    from study.store import Store
+    from study.tasks import TaskError
+
+    start = _time.perf_counter()
+    _load_scenes(names)
+    study = Study(profile, executor=executor)
+    import taa_impl
+    sweep_cfg = tuple(c for c in SPARSE_SWEEP if c.name in taa_impl.TECHNIQUES) if sweep else ()
+    try:
+        res = study.run(names, configs, agreement=not no_agreement, sweep=sweep_cfg)
+    except TaskError as exc:
+        _fail(str(exc))
+    out = Path(out_dir or f"out/{study.profile.name}")
+    report = Report(out, Store(study.cache.root))
+    views = res.views
+    for vi, (vlabel, results) in enumerate(views.items()):
+        for r in results:
+            report.static(r, res.agreements.get(r.scene), res.references[r.scene],
+                          "static" if vi == 0 else "static_converged")
+    for pname, results in res.ghosts.items():
+        for g in results:
+            report.ghosting(g, res.agreements.get(g.scene), stem=pname)
+    for s in res.sweeps:
+        report.sparse_cost([s], stem="sparse_sweep_" + s.scene,
+                           title=f"Sparse supersampling: mu against cost and quality ({s.scene}, {s.test})")
+    report.headline(views)
+    report.reproduction(views, res.ghosts)
+    converged = list(views.values())[-1] if views else []
+    report.speed_error(converged)
+    report.history_convergence(res.statics, THESIS_HISTORY)
+    report.sparse_cost(converged + [g for gs in res.ghosts.values() for g in gs])
+    report.convergence(res.references)
+    summary = {**res.stats, "seconds": round(_time.perf_counter() - start, 2), "profile": study.profile.name,
+               "scenes": names, "techniques": [c.label for c in configs], "executor": executor.describe()}
     report.finish(summary)
     click.echo((out / "tables" / "headline.md").read_text())
-    click.echo((out / "tables" / "reproduction.md").read_text())
-    click.echo(f"runs computed {study.stats['runs_computed']}, cached {study.stats['runs_cached']}; "
-               f"metrics computed {study.stats['metrics_computed']}; references rendered "
-               f"{study.stats['references_rendered']}; {summary['seconds']:.1f} s; artefacts in {out}/")
+    if (out / "tables" / "reproduction.md").exists():
+        click.echo((out / "tables" / "reproduction.md").read_text())
+    click.echo(f"runs computed {res.stats['runs_computed']}, cached {res.stats['runs_cached']}; "
+               f"metrics computed {res.stats['metrics_computed']}; references rendered "
+               f"{res.stats['references_rendered']}; {summary['seconds']:.1f} s; artefacts in {out}/")
+    return out
 
 
 @main.command()
-@click.option("--width", default=1600, show_default=True)
-@click.option("--height", default=900, show_default=True)
-@click.option("--repeats", default=7, show_default=True, help="Timed runs per technique (median).")
-@click.option("--technique", "tech_names", multiple=True, help="Only these techniques (repeatable).")
+@click.option("--profile", type=click.Choice(["quick", "full"]), default="quick", show_default=True)
+@click.option("--scenes", "scene_list", default=None, callback=_scene_list,
+              help="Comma-separated scenes (default: every built-in).")
+@click.option("--techniques", "tech_list", multiple=True,
+              help="Technique as 'name' or 'Label=name:field=value,...' (repeatable; default: the thesis's set).")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
+              help="Output folder (default: out/<profile>); it keeps only this study's tables and figures.")
+@click.option("--no-agreement", is_flag=True, help="Skip the per-scene reference agreement figure.")
+@_execution_options
+def run(profile, scene_list, tech_list, out_dir, no_agreement, workers, threads, scheduler):
+    """Run the static and ghosting tests and write tables, maps and plots (make-style)."""
+    from scenes import builtin_names
+    names = scene_list or builtin_names()
+    configs = _techniques(tech_list)
+    run_study(profile, names, configs, out_dir, no_agreement, _executor(workers, threads, scheduler),
+              sweep=not tech_list)
+
+
+def _technique_names(ctx, param, value):
+    if not value:
+        return value
+    import taa_impl
+    bad = [v for v in value if v not in taa_impl.TECHNIQUES]
+    if bad:
+        raise click.BadParameter(f"unknown technique(s) {', '.join(bad)}; known: {', '.join(sorted(taa_impl.TECHNIQUES))}")
+    return tuple(dict.fromkeys(value))
+
+
+@main.command()
+@click.option("--width", default=1600, show_default=True, type=click.IntRange(min=8))
+@click.option("--height", default=900, show_default=True, type=click.IntRange(min=8))
+@click.option("--repeats", default=7, show_default=True, type=click.IntRange(min=1),
+              help="Timed runs per technique (median).")
+@click.option("--technique", "tech_names", multiple=True, callback=_technique_names,
+              help="Only these techniques (repeatable).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 def bench(width, height, repeats, tech_names, as_json):
     """Time each technique per frame against its NumPy oracle and the bandwidth floor."""
-    if width < 8 or height < 8:
-        _fail(f"--width/--height must be >= 8, got {width}x{height}")
     from study.bench import bench as run_bench
     res = run_bench(width, height, repeats, list(tech_names) or None,
                     log=(lambda m: None) if as_json else (lambda m: click.echo(m, err=True)))
     if as_json:
-        click.echo(json.dumps(res))
+        click.echo(_strict_json(res))
         return
     click.echo(f"{width}x{height}, backend {res['backend']}, copy bandwidth {res['copy_bandwidth_gbs']:.2f} GB/s")
     click.echo(f"{'technique':24s} {'Dr.Jit ms':>10s} {'e2e ms':>8s} {'NumPy ms':>10s} {'speed-up':>9s} "
@@ -272,27 +364,24 @@ def bench(width, height, repeats, tech_names, as_json):
 @main.command()
 @click.argument("a")
 @click.argument("b")
-@click.option("--scenes", "scene_list", default="pipe,sphere_ghosting", show_default=True,
+@click.option("--scenes", "scene_list", default="pipe,sphere_ghosting", show_default=True, callback=_scene_list,
               help="Comma-separated scenes.")
 @click.option("--profile", type=click.Choice(["quick", "full"]), default="quick", show_default=True)
 @click.option("--max-worse", "gates", multiple=True,
               help="METRIC=THRESHOLD: exit 1 if B is worse than A by more than THRESHOLD on average "
                    "(e.g. psnr=0.25, ssim=0.002, mse=1.0, flip_ldr=0.002). Repeatable.")
-@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
-def ab(a, b, scene_list, profile, gates, as_json):
+@click.option("--json", "as_json", is_flag=True, help="Print one strict JSON object (nothing else on stdout).")
+@_execution_options
+def ab(a, b, scene_list, profile, gates, as_json, workers, threads, scheduler):
     """Compare technique configuration B against A: paired differences with bootstrap intervals.
 
     A and B are 'name' or 'Label=name:field=value,...', e.g.
     taa-study ab taa_baseline "taa_baseline:sharpen=normalised" --max-worse psnr=0.25"""
-    from scenes import SceneError, get_scene
     from study.ab import AB_METRICS, compare
-    from study.config import TechniqueConfig
-    try:
-        ca, cb = TechniqueConfig.parse(a), TechniqueConfig.parse(b)
-        scenes_ = [get_scene(s.strip()) for s in scene_list.split(",") if s.strip()]
-        ca.make(), cb.make()
-    except (SceneError, ValueError, KeyError, TypeError) as exc:
-        _fail(str(exc))
+    from study.run import Study
+    from study.tasks import TaskError
+    ca, cb = _techniques((a, b)) if a != b else (_techniques((a,))[0], _techniques((a,))[0])
+    _load_scenes(scene_list)
     limits = {}
     for g in gates:
         m, eq, v = g.partition("=")
@@ -302,16 +391,24 @@ def ab(a, b, scene_list, profile, gates, as_json):
             limits[m] = float(v)
         except ValueError:
             _fail(f"--max-worse {g!r}: threshold {v!r} is not a number")
-    res = compare(ca, cb, scenes_, profile, progress=not as_json)
+    try:
+        res = compare(ca, cb, scene_list, profile, progress=not as_json,
+                      study=Study(profile, progress=not as_json, executor=_executor(workers, threads, scheduler)))
+    except TaskError as exc:
+        _fail(str(exc))
     failed = {m: res.worse_by(m) for m, lim in limits.items() if res.worse_by(m) > lim}
     if as_json:
-        click.echo(json.dumps({**res.as_dict(), "gates": limits, "failed": failed}))
+        click.echo(_strict_json({**res.as_dict(), "gates": limits, "failed": failed}))
     else:
         click.echo(f"B = {res.b}  vs  A = {res.a}   (differences B - A, mean [95 % bootstrap CI], n pairs)")
         for scene, per in list(res.per_scene.items()) + [("OVERALL", res.overall)]:
-            cells = [f"{m} {v['mean']:+.4g} [{v['ci'][0]:+.3g}, {v['ci'][1]:+.3g}] n={v['n']}" for m, v in per.items()]
+            cells = []
+            for m, v in per.items():
+                ci = f"[{v['ci'][0]:+.3g}, {v['ci'][1]:+.3g}]" if v["ci"] else "[no interval: one pair]"
+                mean = "–" if v["mean"] is None else f"{v['mean']:+.4g}"
+                cells.append(f"{m} {mean} {ci} n={v['n']}")
             click.echo(f"  {scene:18s} " + "; ".join(cells))
-        click.echo(f"  time: A {res.ms['a']:.2f} ms, B {res.ms['b']:.2f} ms per frame ({res.ms['diff']:+.2f} ms)")
+        click.echo(f"  cost: A {res.ms['a']:.2f} ms, B {res.ms['b']:.2f} ms per frame ({res.ms['diff']:+.2f} ms)")
         for m, w in failed.items():
             click.echo(f"  GATE FAILED: B is worse than A on {m} by {w:.4g} (> {limits[m]})")
     if failed:
@@ -320,34 +417,42 @@ def ab(a, b, scene_list, profile, gates, as_json):
 
 @main.command()
 @click.option("--profile", type=click.Choice(["quick", "full"]), default="quick", show_default=True)
-@click.option("--scenes", "scene_list", default="", help="Comma-separated scenes (default: every built-in).")
+@click.option("--scenes", "scene_list", default=None, callback=_scene_list,
+              help="Comma-separated scenes (default: every built-in).")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
+              help="The study's output folder (default: out/<profile>).")
 @click.option("--no-pdf", is_flag=True, help="Only regenerate paper/generated/, do not run LaTeX.")
-@click.pass_context
-def paper(ctx, profile, scene_list, no_pdf):
+@_execution_options
+def paper(profile, scene_list, out_dir, no_pdf, workers, threads, scheduler):
     """Regenerate the study, copy its tables and figures into paper/generated/, build the PDF."""
     import shutil
     import subprocess
     from pathlib import Path
 
+    from scenes import builtin_names
     from study.store import write_bytes_atomic, write_text_atomic
 
-    ctx.invoke(run, profile=profile, scene_list=scene_list, tech_list=(), out_dir=None, no_agreement=False)
-    src = Path(f"out/{profile}")
+    src = run_study(profile, scene_list or builtin_names(), _techniques(()), out_dir, False,
+                    _executor(workers, threads, scheduler))
+    listed = json.loads((src / "manifest.json").read_text())["artefacts"]   # only this study's files
     root = Path(__file__).resolve().parent.parent / "paper"
     gen = root / "generated"
+    if gen.exists():
+        shutil.rmtree(gen)
     parts = []
-    order = ["headline", "reproduction", "speed_error"]
-    tables = sorted(src.glob("tables/*.tex"), key=lambda p: (p.stem not in order,
-                                                             order.index(p.stem) if p.stem in order else 0, p.stem))
+    order = ["headline", "reproduction", "history_convergence", "speed_error"]
+    tables = sorted((src / rel for rel in listed if rel.startswith("tables/") and rel.endswith(".tex")),
+                    key=lambda p: (p.stem not in order, order.index(p.stem) if p.stem in order else 0, p.stem))
     for t in tables:
         write_text_atomic(gen / "tables" / t.name, t.read_text())
         parts.append(f"\\input{{generated/tables/{t.stem}}}")
-    for fig in sorted(src.glob("plots/*.png")):
+    figures = sorted(src / rel for rel in listed if rel.startswith("plots/") and rel.endswith(".png"))
+    for fig in figures:
         write_bytes_atomic(gen / "figures" / fig.name, fig.read_bytes())
         parts.append("\\begin{figure}[H]\\centering\\includegraphics[width=0.7\\linewidth]"
                      f"{{generated/figures/{fig.name}}}\\caption{{{fig.stem.replace('_', ' ')}}}\\end{{figure}}")
     write_text_atomic(gen / "results.tex", "% generated by taa-study paper\n" + "\n\\clearpage\n".join(parts) + "\n")
-    click.echo(f"paper/generated/: {len(tables)} tables, {len(list(src.glob('plots/*.png')))} figures")
+    click.echo(f"paper/generated/: {len(tables)} tables, {len(figures)} figures")
     if no_pdf:
         return
     engine = shutil.which("latexmk") or shutil.which("pdflatex")

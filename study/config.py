@@ -2,50 +2,10 @@
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
 from dataclasses import dataclass
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
-
-
-def source_hash(*globs: str) -> str:
-    """Hash of source files, so an artefact is recomputed when the code that made it changes."""
-    h = hashlib.sha256()
-    for pattern in globs:
-        for p in sorted(ROOT.glob(pattern)):
-            h.update(p.relative_to(ROOT).as_posix().encode())
-            h.update(p.read_bytes())
-    return h.hexdigest()[:12]
-
-
-def technique_code_hash(tech) -> str:
-    """Hash of the taa_impl modules this technique's code comes from: the modules of its classes
-    and, transitively, the taa_impl modules they use. Editing one technique recomputes only it."""
-    import inspect
-    import sys
-    seen: set[str] = set()
-    todo = [c.__module__ for c in type(tech).__mro__ if c.__module__.startswith("taa_impl")]
-    while todo:
-        name = todo.pop()
-        if name in seen or name not in sys.modules:
-            continue
-        seen.add(name)
-        for v in vars(sys.modules[name]).values():
-            mod = v.__name__ if inspect.ismodule(v) else getattr(v, "__module__", None)
-            if isinstance(mod, str) and mod.startswith("taa_impl.") and mod not in seen:
-                todo.append(mod)
-    h = hashlib.sha256()
-    for name in sorted(seen):
-        path = Path(sys.modules[name].__file__)
-        h.update(name.encode())
-        h.update(path.read_bytes())
-    return h.hexdigest()[:12]
-
-
-def stable_hash(obj) -> str:
-    return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:16]
+from .protocols import Protocol
 
 
 @dataclass(frozen=True)
@@ -59,10 +19,15 @@ class TechniqueConfig:
         import taa_impl
         return taa_impl.make(self.name, **dict(self.overrides))
 
-    def key(self) -> str:
+    def key_data(self) -> dict:
+        """What identifies this technique's output: registry name, effective parameters, and the
+        class whose code (and, transitively, the code it uses) produced it (see provenance)."""
         tech = self.make()
         params = dataclasses.asdict(tech.params) if dataclasses.is_dataclass(tech.params) else repr(tech.params)
-        return stable_hash({"name": self.name, "params": params, "code": technique_code_hash(tech)})
+        return {"name": self.name, "params": params, "class": f"{type(tech).__module__}.{type(tech).__qualname__}"}
+
+    def code(self) -> type:
+        return type(self.make())
 
     @classmethod
     def parse(cls, text: str) -> "TechniqueConfig":
@@ -103,20 +68,41 @@ SPARSE_SWEEP = tuple(TechniqueConfig(f"Sparse mu={mu}", "taa_sparse", (("mu", mu
                      for mu in (0.05, 0.1, 0.2, 0.4, 0.8))
 
 
+# Log-spaced history lengths of the convergence study (one 256-frame run judged at each).
+CHECKPOINTS = (1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256)
+THESIS_HISTORY = 16          # the thesis keeps frame 16 after a reset (spec section 10)
+# k = 0.979 weighs the first frame below 1 % after ln 0.01 / ln k = 217 frames (spec section 13).
+CONVERGED_HISTORY = 256
+CONVERGED_WARMUP = 224       # a multiple of the jitter period, so warm-up frames repeat 16 raster frames
+
+
 @dataclass(frozen=True)
 class Profile:
     name: str
     use_full_resolution: bool
-    ghosting_frames: int           # frames of each ghosting sequence (capped by the scene's own)
-    history_frames: int = 16       # static test: frames of TAA history before the kept frame
-    target_noise_db: float = 60.0  # reference convergence target
+    static: Protocol
+    ghosting: tuple = ()                  # ghosting protocols (cold = the thesis's, warm = converged)
+    target_noise_db: float = 60.0         # reference convergence target
     ghosting_techniques_skip: tuple = ("accumulation",)   # N sub-frames per frame: too slow for sequences
     sweep_scenes: tuple = ("sphere_ghosting", "disocclusion")  # where the sparse-supersampling mu sweep runs
+    agreement_samples: int = 64
+
+    @property
+    def static_views(self) -> dict[str, int]:
+        """Labelled static protocols read from the one static run: label -> history length."""
+        return {f"thesis ({THESIS_HISTORY} frames, cold)": THESIS_HISTORY,
+                f"converged ({self.static.history} frames)": self.static.history}
+
+
+def _profile(name: str, full: bool, ghost_frames: int, **kw) -> Profile:
+    return Profile(name, full, Protocol("static", "static", history=CONVERGED_HISTORY, checkpoints=CHECKPOINTS),
+                   (Protocol("ghosting", "ghosting", frames=ghost_frames, warmup=0),
+                    Protocol("ghosting_warm", "ghosting", frames=ghost_frames, warmup=CONVERGED_WARMUP)), **kw)
 
 
 PROFILES = {
-    "quick": Profile("quick", False, ghosting_frames=24),
-    "full": Profile("full", True, ghosting_frames=100, ghosting_techniques_skip=()),
+    "quick": _profile("quick", False, 24),
+    "full": _profile("full", True, 100, ghosting_techniques_skip=(), agreement_samples=256),
 }
 
 

@@ -1,16 +1,21 @@
-"""The thesis's test protocols, driving the raster and the techniques in lockstep.
+"""The test protocols, and the driver that runs techniques over them in lockstep with the raster.
 
-Static test (thesis 4.2.1): at one scene time, a 'sequence' technique (TAA) sees 16 frames with
-Halton jitter k = 0..15 and the last output is kept; a 'centre' technique (No AA, FXAA) sees the
-unjittered frame; a 'supersample' one (accumulation) its N jittered sub-frames.
-Ghosting test (thesis 4.2.2): frames t = 0..N-1 of an animated scene, jitter k = t, history reset
-at the first frame and at camera cuts; every frame is kept and judged against its own reference.
-Raster frames are rendered once per step and shared by every technique that needs them.
+Static test (thesis 4.2.1), parameter `history`: at one scene time a 'sequence' technique (TAA)
+sees `history` frames with Halton jitter k = 0, 1, ... from a reset; its output is judged at each
+of `checkpoints` (history lengths; the thesis keeps 16). One run of the longest history gives every
+shorter one, so the convergence study and the thesis's protocol come from the same frames. A
+'centre' technique (No AA, FXAA, SMAA) sees the unjittered frame, a 'supersample' one
+(accumulation) its N jittered sub-frames; they have no history and are judged once.
+Ghosting test (thesis 4.2.2), parameters `frames` and `warmup`: `warmup` frames at the first
+instant (the scene does not move yet; not judged), then scene times t = 0..frames-1, jitter
+continuing, history reset at camera cuts; every frame t is judged against its own reference.
+The thesis's protocol is a cold start (warmup 0).
+
+A static scene's frames repeat with the jitter's period (16): the driver renders each distinct
+(time, jitter) raster frame once and reuses it, so 256 frames of history cost 16 raster frames.
 """
 from __future__ import annotations
 
-import statistics
-import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,7 +26,7 @@ from raster import Rasterizer
 from scenes import ResolvedScene
 from scenes.jitter import TAA_PERIOD, halton_offset, halton_offsets
 
-from .config import TechniqueConfig
+
 
 
 @dataclass(frozen=True)
@@ -31,93 +36,145 @@ class Step:
     keep: bool      # output judged
     reset: bool     # history reset before this step
     prev_t: int     # scene time of the previous step: motion vectors and previous cameras refer to it
+    frame: int = -1  # id a kept output is filed under: history length (static) or scene time (ghosting)
 
 
-def static_schedule(t: int, history: int) -> list[Step]:
+@dataclass(frozen=True)
+class Protocol:
+    """A test and its parameters. `name` labels it in tables."""
+    name: str
+    kind: str                          # 'static' | 'ghosting'
+    history: int = 16                  # static: frames of history of the longest run
+    checkpoints: tuple = (16,)         # static: history lengths judged
+    frames: int = 24                   # ghosting: judged frames (capped by the scene's own)
+    warmup: int = 0                    # ghosting: unjudged frames at the first instant
+
+    def __post_init__(self):
+        if self.kind not in ("static", "ghosting"):
+            raise ValueError(f"protocol {self.name!r}: kind must be 'static' or 'ghosting', got {self.kind!r}")
+        if self.kind == "static":
+            bad = [c for c in self.checkpoints if not 1 <= int(c) <= self.history]
+            if self.history < 1 or not self.checkpoints or bad:
+                raise ValueError(f"protocol {self.name!r}: need history >= 1 and checkpoints in 1..history, "
+                                 f"got history {self.history}, checkpoints {list(self.checkpoints)}")
+        elif self.frames < 1 or self.warmup < 0:
+            raise ValueError(f"protocol {self.name!r}: need frames >= 1 and warmup >= 0, "
+                             f"got {self.frames}, {self.warmup}")
+
+    def schedule(self, scene: ResolvedScene) -> list[Step]:
+        if self.kind == "static":
+            return static_schedule(0, self.history, self.checkpoints)
+        return ghosting_schedule(scene, min(scene.desc.frames, self.frames), self.warmup)
+
+
+def static_schedule(t: int, history: int, checkpoints=None) -> list[Step]:
     # Every frame shows the same instant: nothing moves between them, only the jitter changes.
-    return [Step(t, k, keep=(k == history - 1), reset=(k == 0), prev_t=t) for k in range(history)]
+    keep = set(checkpoints or (history,))
+    return [Step(t, k, keep=(k + 1) in keep, reset=(k == 0), prev_t=t, frame=k + 1) for k in range(history)]
 
 
-def ghosting_schedule(scene: ResolvedScene, frames: int) -> list[Step]:
-    return [Step(t, t, keep=True, reset=scene.is_cut(t), prev_t=t - 1) for t in range(frames)]
+def ghosting_schedule(scene: ResolvedScene, frames: int, warmup: int = 0) -> list[Step]:
+    warm = [Step(0, k, keep=False, reset=(k == 0), prev_t=0) for k in range(warmup)]
+    # After a warm-up, frame 0 continues the warm history (is_cut(0) means "first frame").
+    return warm + [Step(t, warmup + t, keep=True, reset=scene.is_cut(t) and not (t == 0 and warmup),
+                        prev_t=max(t - 1, 0) if warmup else t - 1, frame=t) for t in range(frames)]
 
 
-def sampling_of(tech) -> str:
-    return getattr(tech, "sampling", "sequence")
+def judged_steps(schedule: list[Step], sampling: str) -> list[Step]:
+    """The steps whose output a technique is judged at. Without history the output depends on the
+    scene time alone, so a technique of 'centre'/'supersample' sampling is judged once per time."""
+    kept = [s for s in schedule if s.keep]
+    if sampling == "sequence":
+        return kept
+    last = {}
+    for s in kept:
+        last[s.t] = s
+    return list(last.values())
+
+
+class FrameSource:
+    """Raster frames of one scene, each distinct (time, jitter, previous time) rendered once."""
+
+    def __init__(self, scene: ResolvedScene, width: int, height: int, buffers):
+        self.raster = Rasterizer(scene, width, height)
+        self.buffers = tuple(sorted(set(buffers) | {"color"}))
+        self._memo: dict = {}
+        self.rendered = 0
+
+    def frame(self, t: int, jitter, prev_t: int) -> dict:
+        key = (t, round(float(jitter[0]), 9), round(float(jitter[1]), 9), prev_t)
+        if key not in self._memo:
+            self._memo[key] = self.raster.render(t, jitter, self.buffers, prev_t=prev_t)
+            self.rendered += 1
+        return self._memo[key]
+
+    def forget_before(self, t: int) -> None:
+        """Frames of earlier scene times are not asked for again in a moving sequence."""
+        for key in [k for k in self._memo if k[0] < t]:
+            del self._memo[key]
+
+    def close(self):
+        self.raster.close()
+
+
+def drive(tech, step: Step, src: FrameSource, scene: ResolvedScene, width: int, height: int,
+          display: DisplayTransform | None):
+    """One step of one technique: the inputs it declares, then `process`. Returns (image, stats)."""
+    inp = tech.inputs
+    far = scene.desc.camera.far
+    kwargs = {"far": far, "reset": step.reset}
+    if inp.display:
+        kwargs["display"] = display
+    if inp.cameras:
+        kwargs["cameras"] = (scene.camera(step.t, width, height), scene.camera(step.prev_t, width, height))
+    if inp.sampling == "sequence":
+        jit = halton_offset(step.k, TAA_PERIOD)
+        frame = src.frame(step.t, jit, step.prev_t)
+        if inp.extra_samples:
+            # Sparse supersampling: extra samples only where the history cannot serve the pixel.
+            mask = np.ones(frame["color"].shape[:2], bool) if step.reset else tech.invalid_mask(frame, far=far)
+            ss, ss_stats = src.raster.supersample(step.t, mask, halton_offsets(inp.extra_samples))
+            img = tech.process(frame, jitter=jit, supersampled=ss, mask=mask, **kwargs)
+            return img, {**getattr(tech, "last_stats", {}), **ss_stats}
+        return tech.process(frame, jitter=jit, **kwargs), {}
+    if inp.sampling == "centre":
+        return tech.process(src.frame(step.t, (0.0, 0.0), step.prev_t), jitter=(0.0, 0.0), **kwargs), {}
+    if inp.sampling == "supersample":
+        subs = [src.frame(step.t, halton_offset(j, inp.subframes), step.prev_t) for j in range(inp.subframes)]
+        img = tech.process_samples(subs)
+        for j in range(inp.subframes):   # sub-frames are not shared with later steps
+            src._memo.pop((step.t, *(round(float(v), 9) for v in halton_offset(j, inp.subframes)), step.prev_t), None)
+        return img, {}
+    raise ValueError(f"technique {tech.name!r} has unknown sampling {inp.sampling!r}")
 
 
 def run_schedule(scene: ResolvedScene, width: int, height: int, schedule: list[Step],
-                 configs: list[TechniqueConfig], displays: dict[int, DisplayTransform],
+                 configs: list, displays: dict[int, DisplayTransform],
                  desc: str = "", progress: bool = True) -> dict[str, dict]:
-    """Run techniques over a schedule. Returns label -> {images: {t: image}, output_space, ms}."""
+    """Run techniques over a schedule. Returns label -> {images: {frame id: image}, output_space,
+    nonfinite, stats: {frame id: counters}}. Timing is not measured here (see study.costs)."""
     techs = {c.label: c.make() for c in configs}
-    needs = set().union(*(t.needs for t in techs.values())) | {"color"}
-    out = {c.label: {"images": {}, "times": [], "output_space": getattr(techs[c.label], "output_space", "linear"),
-                     "nonfinite": 0, "stats": {}} for c in configs}
-    far = scene.desc.camera.far
-    first_kept = True   # single-image techniques run twice there, so their time excludes the compile
-    raster = Rasterizer(scene, width, height)
+    needs = set().union(*(t.inputs.buffers for t in techs.values()))
+    judged = {label: {s.frame for s in judged_steps(schedule, t.inputs.sampling)} for label, t in techs.items()}
+    out = {label: {"images": {}, "output_space": t.output_space, "nonfinite": 0, "stats": {}}
+           for label, t in techs.items()}
+    src = FrameSource(scene, width, height, needs)
+    last_t = None
     try:
         for step in tqdm(schedule, desc=desc or scene.name, unit="frame", disable=not progress,
                          leave=False, mininterval=1.0):
-            seq_frame = centre_frame = None
+            if last_t is not None and step.t != last_t:
+                src.forget_before(step.t)
+            last_t = step.t
             for label, tech in techs.items():
-                mode = sampling_of(tech)
-                if mode != "sequence" and not step.keep:
+                if tech.inputs.sampling != "sequence" and step.frame not in judged[label]:
                     continue
-                kwargs = {"far": far, "reset": step.reset}
-                if getattr(tech, "output_space", "linear") == "display":
-                    kwargs["display"] = displays[step.t]
-                if getattr(tech, "needs_cameras", False):   # e.g. motion from depth and camera only
-                    kwargs["cameras"] = (scene.camera(step.t, width, height),
-                                         scene.camera(step.prev_t, width, height))
-                if mode == "sequence":
-                    if seq_frame is None:
-                        jit = halton_offset(step.k, TAA_PERIOD)
-                        seq_frame = (raster.render(step.t, jit, tuple(needs), prev_t=step.prev_t), jit)
-                    frame, jit = seq_frame
-                    t0 = time.perf_counter()
-                    if getattr(tech, "supersampling", False):
-                        # Sparse supersampling: the technique marks pixels its history cannot
-                        # serve; only those get extra samples (timed as raster work, not here).
-                        mask = tech.invalid_mask(frame, far=far) if not step.reset else \
-                            np.ones(frame["color"].shape[:2], bool)
-                        t_mask = time.perf_counter() - t0
-                        n = int(getattr(tech.params, "samples", 8))
-                        ss, ss_stats = raster.supersample(step.t, mask, halton_offsets(n))
-                        t0 = time.perf_counter() - t_mask
-                        img = tech.process(frame, jitter=jit, supersampled=ss, mask=mask, **kwargs)
-                        if step.keep:
-                            out[label]["stats"][step.t] = {**getattr(tech, "last_stats", {}), **ss_stats}
-                    else:
-                        img = tech.process(frame, jitter=jit, **kwargs)
-                elif mode == "centre":
-                    if centre_frame is None:
-                        centre_frame = raster.render(step.t, (0.0, 0.0), tuple(needs), prev_t=step.prev_t)
-                    if first_kept:
-                        tech.process(centre_frame, jitter=(0.0, 0.0), **kwargs)
-                    t0 = time.perf_counter()
-                    img = tech.process(centre_frame, jitter=(0.0, 0.0), **kwargs)
-                elif mode == "supersample":
-                    n = int(tech.params.samples)
-                    subs = [raster.render(step.t, halton_offset(j, n), tuple(needs), prev_t=step.prev_t)
-                            for j in range(n)]
-                    if first_kept:
-                        tech.process_samples(subs)
-                    t0 = time.perf_counter()
-                    img = tech.process_samples(subs)
-                else:
-                    raise ValueError(f"technique {label!r} has unknown sampling {mode!r}")
-                out[label]["times"].append(time.perf_counter() - t0)
+                img, stats = drive(tech, step, src, scene, width, height, displays.get(step.t))
                 out[label]["nonfinite"] += int(getattr(tech, "last_nonfinite_count", 0))
-                if step.keep:
-                    out[label]["images"][step.t] = np.asarray(img, np.float32)
-            if step.keep:
-                first_kept = False
+                if step.frame in judged[label] and step.keep:
+                    out[label]["images"][step.frame] = np.asarray(img, np.float32)
+                    if stats:
+                        out[label]["stats"][step.frame] = stats
     finally:
-        raster.close()
-    for label, r in out.items():
-        times = r.pop("times")
-        warm = times[2:] if len(times) > 2 else times   # the first calls compile kernels
-        r["ms"] = 1000 * statistics.median(warm)
+        src.close()
     return out

@@ -13,7 +13,7 @@ import numpy as np
 from PIL import Image
 
 from display import DisplayTransform
-from references.exr import read_exr, write_exr
+from references.exr import write_exr
 
 from .store import write_bytes_atomic, write_text_atomic
 from .tables import METRIC_LABELS, Table, fmt, thesis_layout
@@ -73,16 +73,45 @@ def pareto(points: dict[str, tuple[float, float]]) -> set[str]:
 
 
 class Report:
-    def __init__(self, out: Path, improved_label: str = "Improved", baseline_label: str = "Uncharted"):
+    """Artefacts of one study in `out`. Every file is listed in manifest.json with the keys of its
+    inputs and its SHA-256; a file whose inputs and content are unchanged is not made again, and
+    `finish` removes every file of out/{tables,images,maps,plots} that this study did not write."""
+
+    FOLDERS = ("tables", "images", "maps", "plots")
+
+    def __init__(self, out: Path, store=None, improved_label: str = "Improved", baseline_label: str = "Uncharted"):
         self.out = Path(out)
+        self.store = store
         self.improved, self.baseline = improved_label, baseline_label
         self.manifest: dict[str, dict] = {}
         self.markdown: list[str] = []
+        try:
+            self.previous = json.loads((self.out / "manifest.json").read_text()).get("artefacts", {})
+        except (OSError, ValueError):
+            self.previous = {}
+
+    def _unchanged(self, rel: str, inputs: dict) -> bool:
+        prev = self.previous.get(rel)
+        path = self.out / rel
+        if not (isinstance(prev, dict) and prev.get("inputs") == json.loads(json.dumps(inputs, default=str))
+                and path.exists()):
+            return False
+        from .store import sha256_file
+        return sha256_file(path) == prev.get("sha256")
 
     def _file(self, rel: str, data, inputs: dict) -> None:
+        """Write `data` (str, bytes, or a function making them) unless inputs and file are unchanged."""
         path = self.out / rel
+        if callable(data):
+            if self._unchanged(rel, inputs):
+                self.manifest[rel] = self.previous[rel]
+                return
+            data = data()
         (write_text_atomic if isinstance(data, str) else write_bytes_atomic)(path, data)
-        self.manifest[rel] = inputs
+        import hashlib
+        raw = data.encode() if isinstance(data, str) else data
+        self.manifest[rel] = {"inputs": json.loads(json.dumps(inputs, default=str)),
+                              "sha256": hashlib.sha256(raw).hexdigest()}
 
     def _table(self, stem: str, table: Table, inputs: dict) -> None:
         self._file(f"tables/{stem}.md", table.markdown(), inputs)
@@ -99,39 +128,61 @@ class Report:
                 f"at {agree['reference_spp']} spp")
 
     # -- static ------------------------------------------------------------------------------
-    def static(self, res, agree: dict | None, cache_refs) -> None:
-        t = res.frames[-1]
-        results = {l: {**res.per_frame[l][t], "ms": res.ms[l]} for l in res.per_frame}
+    def static(self, res, agree: dict | None, ref, stem: str) -> None:
+        """One static protocol's table, display images and maps (res: a view of the static run)."""
+        n = res.frames[-1]
+        results = {l: {**res.per_frame[l][n], "ms": res.ms[l]} for l in res.per_frame}
         inputs = {"runs": {l: a["run_key"] for l, a in res.artefacts.items()},
                   "metrics": {l: a["metrics_key"] for l, a in res.artefacts.items()},
-                  "reference": res.reference_keys[t]}
-        note = f"{res.width}x{res.height}, 8-bit display images. " + self._floor_note(agree)
-        table = thesis_layout(f"Static test: {res.scene}", results, STATIC_METRICS,
+                  "costs": {l: c.get("key") for l, c in res.costs.items()}}
+        note = (f"{res.test}: {res.width}x{res.height}, 8-bit display images; ms / frame = raster of the samples "
+                f"shaded + resolve (study.costs). " + self._floor_note(agree))
+        table = thesis_layout(f"Static test, {res.test}: {res.scene}", results, STATIC_METRICS,
                               self.improved if self.improved in results else None, note)
-        self._table(f"static_{res.scene}", table, inputs)
-        ref = cache_refs(res.scene, t, res.width, res.height)
+        self._table(f"{stem}_{res.scene}", table, inputs)
         disp = DisplayTransform.from_reference(ref.image)
-        self._file(f"images/static_{res.scene}_reference.png", _png(disp.to_8bit(ref.image)),
-                   {"reference": res.reference_keys[t]})
+        self._file(f"images/{stem}_{res.scene}_reference.png", lambda: _png(disp.to_8bit(ref.image)),
+                   {"reference": ref.key})
         for label, a in res.artefacts.items():
-            folder = Path(a["folder"])
-            _, ch = read_exr(folder / f"frame_{t:04d}.exr")
-            img = np.stack([ch[c] for c in "RGB"], -1)
-            img8 = (np.round(np.clip(img, 0, 1) * 255).astype(np.uint8) if a["output_space"] == "display"
-                    else disp.to_8bit(img))
-            key = {"run": a["run_key"], "metrics": a["metrics_key"]}
-            self._file(f"images/static_{res.scene}_{slug(label)}.png", _png(img8), key)
-            _, maps = read_exr(folder / f"maps_{a['metrics_key']}.exr")
-            self._file(f"maps/static_{res.scene}_{slug(label)}_ssim.png",
-                       _png(np.round(np.clip(maps["ssim"], 0, 1) * 255).astype(np.uint8)), key)
-            self._file(f"maps/static_{res.scene}_{slug(label)}_flip.png", _png(_magma(maps["flip_ldr"])), key)
-            exr_path = self.out / f"maps/static_{res.scene}_{slug(label)}.exr"
-            if not exr_path.exists() or self.manifest.get(str(exr_path.relative_to(self.out))) != key:
-                write_exr(exr_path, maps)
-            self.manifest[str(exr_path.relative_to(self.out))] = key
+            f = a["frame"]
+            key = {"run": a["run_key"], "metrics": a["metrics_key"], "frame": f}
+            base = f"{stem}_{res.scene}_{slug(label)}"
+
+            def image(a=a, f=f):
+                img = self._run_image(a, f)
+                return _png(np.round(np.clip(img, 0, 1) * 255).astype(np.uint8) if a["output_space"] == "display"
+                            else disp.to_8bit(img))
+            self._file(f"images/{base}.png", image, key)
+            if f not in a["maps_for"]:
+                continue
+            maps = {}
+
+            def get_maps(a=a, f=f):
+                if not maps:
+                    maps.update(self._maps(a, f))
+                return maps
+            self._file(f"maps/{base}_ssim.png",
+                       lambda: _png(np.round(np.clip(get_maps()["ssim"], 0, 1) * 255).astype(np.uint8)), key)
+            self._file(f"maps/{base}_flip.png", lambda: _png(_magma(get_maps()["flip_ldr"])), key)
+            self._file(f"maps/{base}.exr", lambda: _exr_bytes(get_maps()), key)
+
+    def _run_image(self, a: dict, f: int) -> np.ndarray:
+        folder = Path(a["folder"])
+        rec = self.store.done(folder, a["run_key"])
+        if rec is None:
+            raise RuntimeError(f"run {folder} is not complete")
+        ch = self.store.read_image(folder, f"frame_{f:04d}.exr", rec)
+        return np.stack([ch[c] for c in "RGB"], -1)
+
+    def _maps(self, a: dict, f: int) -> dict:
+        folder = Path(a["metrics_folder"])
+        rec = self.store.done(folder, a["metrics_key"])
+        if rec is None:
+            raise RuntimeError(f"metrics {folder} are not complete")
+        return self.store.read_image(folder, f"maps_{f:04d}.exr", rec)
 
     # -- ghosting ----------------------------------------------------------------------------
-    def ghosting(self, res, agree: dict | None) -> None:
+    def ghosting(self, res, agree: dict | None, stem: str = "ghosting") -> None:
         labels = list(res.per_frame)
         header = ["metric", "statistic"] + labels
         rows = []
@@ -149,31 +200,41 @@ class Report:
             rows.append(["", "mean"] + [fmt(m, s[4]) for s in stats.values()])
         rows.append([METRIC_LABELS["temporal"], "sequence"] + [fmt("temporal", res.temporal[l]) for l in labels])
         rows.append([METRIC_LABELS["ms"], "median"] + [fmt("ms", res.ms[l]) for l in labels])
-        note = (f"{len(res.frames)} frames at {res.width}x{res.height}, each against its own reference. "
+        note = (f"{res.test}: {len(res.frames)} frames at {res.width}x{res.height}, each against its own reference. "
                 + self._floor_note(agree))
         inputs = {"runs": {l: a["run_key"] for l, a in res.artefacts.items()},
                   "references": list(res.reference_keys.values())}
-        self._table(f"ghosting_{res.scene}", Table(f"Ghosting test: {res.scene}", header, rows, note), inputs)
-        self._file(f"plots/ghosting_{res.scene}.png", _plot_series(res), inputs)
+        self._table(f"{stem}_{res.scene}", Table(f"Ghosting test, {res.test}: {res.scene}", header, rows, note), inputs)
+        self._file(f"plots/{stem}_{res.scene}.png", lambda: _plot_series(res), inputs)
 
     # -- summaries ---------------------------------------------------------------------------
-    def headline(self, statics) -> None:
-        if not statics:
+    def headline(self, views: dict) -> None:
+        """Static test, PSNR / SSIM per scene, one row per labelled protocol (view label -> results)."""
+        if not views:
             return
-        labels = list(statics[0].per_frame)
+        first = next(iter(views.values()))
+        if not first:
+            return
+        labels = list(first[0].per_frame)
         rows = []
-        for r in statics:
-            t = r.frames[-1]
-            psnr = {l: r.per_frame[l][t]["psnr"] for l in labels if l in r.per_frame}
-            ssim = {l: r.per_frame[l][t]["ssim"] for l in labels if l in r.per_frame}
-            rows.append([r.scene] + [f"{fmt('psnr', psnr.get(l))} / {fmt('ssim', ssim.get(l))}" for l in labels]
-                        + [max(psnr, key=psnr.get)])
+        for i, r0 in enumerate(first):
+            for vlabel, results in views.items():
+                r = results[i]
+                n = r.frames[-1]
+                psnr = {l: r.per_frame[l][n]["psnr"] for l in labels if l in r.per_frame}
+                ssim = {l: r.per_frame[l][n]["ssim"] for l in labels if l in r.per_frame}
+                rows.append([r.scene, vlabel] + [f"{fmt('psnr', psnr.get(l))} / {fmt('ssim', ssim.get(l))}"
+                                                  for l in labels] + [max(psnr, key=psnr.get)])
         self._table("headline", Table("Static test, PSNR (dB) / SSIM on 8-bit display images",
-                                      ["scene"] + labels + ["best PSNR"], rows), {"scenes": [r.scene for r in statics]})
+                                      ["scene", "protocol"] + labels + ["best PSNR"], rows,
+                                      "Techniques without history (No AA, FXAA, SMAA, SSAA) give the same image "
+                                      "under both protocols."),
+                    {"scenes": [r.scene for r in first], "protocols": list(views)})
 
-    def reproduction(self, statics, ghosts) -> None:
+    def reproduction(self, views: dict, ghosts: dict) -> None:
+        """The thesis's rankings against ours, per scene and labelled protocol."""
         rows = []
-        for r in statics:
+        for vlabel, r in [(v, r) for v, rs in views.items() for r in rs]:
             if r.scene not in THESIS_STATIC_PSNR:
                 continue
             t = r.frames[-1]
@@ -185,19 +246,19 @@ class Report:
             claim_t = thesis["Improved"] > thesis["Uncharted"]
             claim_o = ours.get("Improved", -1) > ours.get("Uncharted", math.inf) if {"Improved", "Uncharted"} <= set(ours) else None
             missing = [l for l in THESIS_COLUMNS if l not in ours]
-            rows.append([r.scene, " > ".join(_rank(thesis)), " > ".join(o_rank),
+            rows.append([f"{r.scene} ({vlabel})", " > ".join(_rank(thesis)), " > ".join(o_rank),
                          f"{thesis['Improved'] - thesis['Uncharted']:+.2f}",
                          "–" if claim_o is None else f"{ours['Improved'] - ours['Uncharted']:+.2f}",
                          f"{_spearman(t_rank, o_rank):.2f}",
                          "–" if claim_o is None else ("yes" if claim_o == claim_t else "no"),
                          ("missing: " + ", ".join(missing)) if missing else ""])
-        for g in ghosts:
+        for g in [g for gs in ghosts.values() for g in gs]:
             if g.scene not in THESIS_GHOST_MSE or not {"Improved", "Uncharted"} <= set(g.per_frame):
                 continue
             tu, ti = THESIS_GHOST_MSE[g.scene]
             mu = float(np.mean([g.per_frame["Uncharted"][t]["mse"] for t in g.frames]))
             mi = float(np.mean([g.per_frame["Improved"][t]["mse"] for t in g.frames]))
-            rows.append([f"{g.scene} (ghosting, mean MSE)", f"Improved {ti:.1f} < Uncharted {tu:.1f}",
+            rows.append([f"{g.scene} ({g.test}, mean MSE)", f"Improved {ti:.1f} < Uncharted {tu:.1f}",
                          f"Improved {mi:.1f} {'<' if mi < mu else '>='} Uncharted {mu:.1f}",
                          f"{ti - tu:+.1f} (MSE)", f"{mi - mu:+.1f} (MSE)", "–", "yes" if mi < mu else "no",
                          f"{len(g.frames)} frames (thesis: 100)"])
@@ -205,23 +266,60 @@ class Report:
                   "ours Improved−Uncharted", "rank correlation ρ", "main claim holds", "note"]
         self._table("reproduction", Table("Reproduction of the thesis's results (spec section 11)", header, rows,
                                           "Main claim: the improved TAA beats the Uncharted 4 / INSIDE TAA."),
-                    {"scenes": [r[0] for r in rows]})
+                    {"rows": [r[0] for r in rows]})
 
     def speed_error(self, statics) -> None:
+        """Cost per output frame (samples shaded x raster time + resolve) against error."""
         rows = []
         for r in statics:
-            t = r.frames[-1]
-            pts = {l: (r.ms[l], r.per_frame[l][t]["flip_ldr"]) for l in r.per_frame}
+            n = r.frames[-1]
+            pts = {l: (r.ms[l], r.per_frame[l][n]["flip_ldr"]) for l in r.per_frame}
             front = pareto(pts)
             for l, (ms, err) in pts.items():
-                rows.append([r.scene, l, fmt("ms", ms), fmt("psnr", r.per_frame[l][t]["psnr"]), fmt("flip_ldr", err),
-                             "yes" if l in front else ""])
-        self._table("speed_error", Table("Speed against error (static test; time per frame on this machine, "
-                                         "Dr.Jit LLVM backend, including NumPy conversion)",
-                                         ["scene", "technique", "ms / frame", "PSNR (dB)", "FLIP LDR", "Pareto front"],
-                                         rows), {"scenes": [r.scene for r in statics]})
+                c = r.costs.get(l, {})
+                rows.append([r.scene, l, f"{c.get('samples_per_pixel', math.nan):.2f}", fmt("ms", c.get("raster_ms")),
+                             fmt("ms", c.get("resolve_ms")), fmt("ms", ms), fmt("psnr", r.per_frame[l][n]["psnr"]),
+                             fmt("flip_ldr", err), "yes" if l in front else ""])
+        self._table("speed_error", Table(
+            "Speed against error (static test, converged protocol): cost per output frame on this machine",
+            ["scene", "technique", "samples / pixel", "raster ms / sample", "resolve ms", "total ms / frame",
+             "PSNR (dB)", "FLIP LDR", "Pareto front"], rows,
+            "total = samples per pixel x raster time of one sample per pixel (+ the extra samples' shading for "
+            "sparse supersampling) + the technique's resolve; resolve alone is its own column. Timed serially, warm, "
+            "Dr.Jit " + _variant() + "."), {"scenes": [r.scene for r in statics]})
         if statics:
-            self._file("plots/speed_error.png", _plot_speed(statics), {"scenes": [r.scene for r in statics]})
+            self._file("plots/speed_error.png", lambda: _plot_speed(statics), {"scenes": [r.scene for r in statics],
+                                                                               "rows": rows})
+
+    def history_convergence(self, statics, thesis_history: int) -> None:
+        """Error against history length (one long static run judged at checkpoints), and the frames
+        each technique needs to come within 0.1 dB of its own converged PSNR."""
+        rows, curves = [], {}
+        for r in statics:
+            for l, per in r.checkpoints.items():
+                ns = sorted(per)
+                if len(ns) < 2:
+                    continue        # no history: one image
+                conv = per[ns[-1]]["psnr"]
+                within = [n for n in ns if all(abs(per[m]["psnr"] - conv) <= 0.1 for m in ns if m >= n)]
+                th = per.get(thesis_history)
+                rows.append([r.scene, l, fmt("psnr", th["psnr"]) if th else "–", fmt("psnr", conv),
+                             f"{conv - th['psnr']:+.2f}" if th else "–",
+                             fmt("ssim", per[ns[-1]]["ssim"]), fmt("flip_ldr", per[ns[-1]]["flip_ldr"]),
+                             str(within[0]) if within else f"> {ns[-1]}"])
+                curves.setdefault(r.scene, {})[l] = per
+        if not rows:
+            return
+        self._table("history_convergence", Table(
+            f"TAA convergence: static test error against history length (checkpoints of one run)",
+            ["scene", "technique", f"PSNR at {thesis_history} (thesis)", "PSNR converged", "gap (dB)",
+             "SSIM converged", "FLIP converged", "frames to within 0.1 dB"], rows,
+            "Frames to within 0.1 dB: the first checkpoint after which PSNR stays within 0.1 dB of its value at the "
+            "longest history."), {"scenes": sorted(curves)})
+        for scene, per_l in curves.items():
+            self._file(f"plots/history_convergence_{scene}.png",
+                       lambda per_l=per_l, scene=scene: _plot_history(scene, per_l, thesis_history),
+                       {"rows": [r for r in rows if r[0] == scene]})
 
     def convergence(self, refs: dict) -> None:
         """The references' own convergence: spp and seconds against their noise (scene -> Reference)."""
@@ -259,9 +357,47 @@ class Report:
 
     def finish(self, summary: dict) -> None:
         self._file("study.md", "# TAA study\n\n" + "\n".join(self.markdown), {"tables": sorted(self.manifest)})
+        removed = 0
+        for folder in self.FOLDERS:
+            for path in sorted((self.out / folder).rglob("*")) if (self.out / folder).exists() else []:
+                if path.is_file() and str(path.relative_to(self.out)) not in self.manifest:
+                    path.unlink()       # another study's (or an older run's) file: not this study's
+                    removed += 1
+        summary = {**summary, "stale_files_removed": removed}
         write_text_atomic(self.out / "manifest.json",
                           json.dumps({"summary": summary, "artefacts": self.manifest}, indent=1, sort_keys=True,
                                      default=str))
+
+
+def _variant() -> str:
+    import backend
+    return backend.VARIANT
+
+
+def _plot_history(scene: str, per_label: dict, thesis_history: int) -> bytes:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(6, 3.4))
+    for l, per in per_label.items():
+        ns = sorted(per)
+        ax.plot(ns, [min(per[n]["psnr"], 99) for n in ns], marker=".", lw=0.9, label=l)
+    ax.axvline(thesis_history, color="k", ls=":", lw=0.8, label=f"thesis ({thesis_history})")
+    ax.set_xscale("log", base=2)
+    ax.set_xlabel("frames of history")
+    ax.set_ylabel("PSNR (dB)")
+    ax.set_title(f"TAA convergence: {scene}")
+    ax.legend(fontsize=6, loc="center left", bbox_to_anchor=(1.0, 0.5))
+    fig.tight_layout()
+    return _fig_bytes(fig)
+
+
+def _exr_bytes(channels: dict) -> bytes:
+    import tempfile
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "maps.exr"
+        write_exr(path, channels)
+        return path.read_bytes()
 
 
 def _magma(x: np.ndarray) -> np.ndarray:
@@ -310,22 +446,26 @@ def _plot_convergence(refs) -> bytes:
 
 
 def _plot_speed(statics) -> bytes:
+    """Median total cost against mean FLIP, one marker per technique, labelled beside it; the legend
+    sits outside the axes so it covers no point."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     labels = list(statics[0].per_frame)
-    fig, ax = plt.subplots(figsize=(6, 3.6))
-    for l in labels:
-        ms = [r.ms[l] for r in statics if l in r.ms]
-        err = [r.per_frame[l][r.frames[-1]]["flip_ldr"] for r in statics if l in r.per_frame]
-        ax.scatter([float(np.median(ms))], [float(np.mean(err))], label=l)
-    med = {l: (float(np.median([r.ms[l] for r in statics])), float(np.mean([r.per_frame[l][r.frames[-1]]["flip_ldr"]
-                                                                             for r in statics]))) for l in labels}
+    med = {l: (float(np.median([r.ms[l] for r in statics])),
+               float(np.mean([r.per_frame[l][r.frames[-1]]["flip_ldr"] for r in statics]))) for l in labels}
+    fig, ax = plt.subplots(figsize=(8, 4))
+    markers = "osD^vP*Xh<>p"
+    for i, l in enumerate(labels):
+        x, y = med[l]
+        ax.scatter([x], [y], marker=markers[i % len(markers)], s=36, label=l, zorder=3)
+        ax.annotate(l, (x, y), textcoords="offset points", xytext=(5, 4 if i % 2 else -9), fontsize=6)
     front = sorted(pareto(med), key=lambda l: med[l][0])
-    ax.plot([med[l][0] for l in front], [med[l][1] for l in front], "k--", lw=0.8, label="Pareto front")
+    ax.plot([med[l][0] for l in front], [med[l][1] for l in front], "k--", lw=0.8, label="Pareto front", zorder=2)
     ax.set_xscale("log")
-    ax.set_xlabel("ms per frame (median over scenes)")
+    ax.set_xlabel("total ms per output frame (samples shaded + resolve; median over scenes)")
     ax.set_ylabel("mean FLIP (LDR)")
-    ax.legend(fontsize=7)
+    ax.margins(x=0.15, y=0.12)
+    ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
     fig.tight_layout()
     return _fig_bytes(fig)

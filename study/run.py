@@ -1,33 +1,26 @@
-"""`taa-study run`: the static and ghosting tests on a set of scenes, make-style.
+"""A study: plan its tasks (study.plan), execute them (study.execute), measure costs serially
+(study.costs), and gather the results the report turns into tables and figures.
 
-Artefacts are keyed by the content of what produced them: a technique's run by the scene's content
-hash, the protocol and its schedule, the resolution, the technique's parameters and the source of
-taa_impl/, raster/, shading/ and scenes/; metrics additionally by the reference keys and the
-metric code. A second run with nothing changed renders nothing and reads the cached metrics.
+Every artefact is keyed by what produced it (provenance.task_key): a run by the scene's content,
+the protocol's schedule, the resolution, the technique's parameters and code (and the references
+when the technique works on display images); metrics by the run and reference keys and the metric
+code. A second study with nothing changed plans no task and only re-reads small records.
 """
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from tqdm import tqdm
-
-from display import DisplayTransform
+from provenance import task_key
 from references import ReferenceCache
-from references.exr import write_exr
 from scenes import ResolvedScene
 
-from . import metrics as M
-from .config import PROFILES, Profile, TechniqueConfig, source_hash, stable_hash
-from .protocols import ghosting_schedule, run_schedule, static_schedule
-from .store import RunStore
-
-# Scene content (meshes, textures, description) is in the scene's own hash; the code listed here is
-# what turns a scene into frames: camera, jitter, animation, raster, shading, and the driver.
-RASTER_CODE = ("raster/*.py", "raster/shaders/*", "shading/*.py", "scenes/camera.py", "scenes/jitter.py",
-               "scenes/resolved.py", "study/protocols.py")
-METRIC_CODE = ("study/metrics.py", "display/*.py")
+from .config import PROFILES, THESIS_HISTORY, Profile, TechniqueConfig
+from .execute import Executor, execute
+from .plan import Planner
+from .tasks import Context, load_scene
 
 
 def is_animated(scene: ResolvedScene) -> bool:
@@ -38,116 +31,188 @@ def is_animated(scene: ResolvedScene) -> bool:
 @dataclass
 class TestResult:
     scene: str
-    test: str                                  # static | ghosting
+    test: str                                  # protocol label
     frames: list[int]
-    per_frame: dict[str, dict[int, dict]]      # label -> t -> metrics
-    ms: dict[str, float]
+    per_frame: dict[str, dict[int, dict]]      # label -> frame id -> metrics
+    ms: dict[str, float]                       # label -> total cost per output frame (study.costs)
     temporal: dict[str, float] = field(default_factory=dict)
     recomputed: list[str] = field(default_factory=list)
-    artefacts: dict[str, dict] = field(default_factory=dict)   # label -> folder, metrics key, output space
-    stats: dict[str, dict] = field(default_factory=dict)       # label -> t -> technique counters (sparse SS)
+    artefacts: dict[str, dict] = field(default_factory=dict)   # label -> folder, keys, output space, frame file
+    stats: dict[str, dict] = field(default_factory=dict)       # label -> frame id -> counters (sparse SS)
     reference_keys: dict[int, str] = field(default_factory=dict)
+    costs: dict[str, dict] = field(default_factory=dict)       # label -> study.costs figures
     width: int = 0
     height: int = 0
+    kind: str = "static"
+    checkpoints: dict[str, dict[int, dict]] = field(default_factory=dict)   # static: label -> n -> metrics
+
+
+@dataclass
+class StudyResults:
+    statics: list = field(default_factory=list)        # one TestResult per scene (all checkpoints)
+    views: dict = field(default_factory=dict)          # static view label -> [TestResult]
+    ghosts: dict = field(default_factory=dict)         # ghosting protocol name -> [TestResult]
+    sweeps: list = field(default_factory=list)
+    agreements: dict = field(default_factory=dict)     # scene -> agreement dict
+    references: dict = field(default_factory=dict)     # scene -> Reference (frame 0)
+    stats: dict = field(default_factory=dict)
 
 
 class Study:
-    def __init__(self, profile: str = "quick", cache_root: Path | None = None, progress: bool = True,
-                 log=print):
-        self.profile: Profile = PROFILES[profile]
+    def __init__(self, profile: str | Profile = "quick", cache_root: Path | None = None, progress: bool = True,
+                 log=None, executor: Executor = Executor()):
+        self.profile: Profile = PROFILES[profile] if isinstance(profile, str) else profile
         self.cache = ReferenceCache(cache_root)
-        self.store = RunStore(self.cache.root)
-        self.progress, self.log = progress, log
-        self.raster_code = source_hash(*RASTER_CODE)
-        self.metric_code = source_hash(*METRIC_CODE)
-        self.stats = {"runs_computed": 0, "runs_cached": 0, "metrics_computed": 0, "references_rendered": 0}
+        self.progress = progress
+        self.log = log or (lambda m: print(m, file=sys.stderr))
+        self.executor = executor
+        self.ctx = Context(str(self.cache.root), executor.threads)
+        self.ref_settings = {"target_noise_db": self.profile.target_noise_db}
 
     def resolution(self, scene: ResolvedScene) -> tuple[int, int]:
         return scene.resolution("full" if self.profile.use_full_resolution else "quick")
 
     def reference(self, scene: ResolvedScene, t: int, w: int, h: int):
-        ref, cached = self.cache.get(scene, t, w, h, target_noise_db=self.profile.target_noise_db)
-        if not cached:
-            self.stats["references_rendered"] += 1
-        return ref
+        return self.cache.get(scene, t, w, h, **self.ref_settings)[0]
 
-    # -- one test ----------------------------------------------------------------------------
-    def run_test(self, scene: ResolvedScene, test: str, configs: list[TechniqueConfig]) -> TestResult:
-        w, h = self.resolution(scene)
-        if test == "static":
-            schedule = static_schedule(0, self.profile.history_frames)
-        else:
-            configs = [c for c in configs if c.name not in self.profile.ghosting_techniques_skip]
-            schedule = ghosting_schedule(scene, min(scene.desc.frames, self.profile.ghosting_frames))
-        kept = [s.t for s in schedule if s.keep]
-        refs = {}
-        for t in tqdm(kept, desc=f"{scene.name}: references", unit="frame", disable=not self.progress,
-                      leave=False):
-            refs[t] = self.reference(scene, t, w, h)
-        displays = {t: DisplayTransform.from_reference(r.image) for t, r in refs.items()}
+    # -- the whole study ----------------------------------------------------------------------------
+    def run(self, specs: list[str], configs: list[TechniqueConfig], agreement: bool = True,
+            sweep: tuple = (), ghosting: bool = True) -> StudyResults:
+        planner = Planner(self.ctx, self.ref_settings, self.profile.agreement_samples if agreement else None)
+        scenes = [(spec, load_scene(spec)) for spec in specs]
+        statics, ghosts, sweeps = [], [], []
+        for spec, scene in scenes:
+            w, h = self.resolution(scene)
+            statics.append(planner.add_test(spec, scene, self.profile.static, configs, w, h, maps="static"))
+            if ghosting and is_animated(scene):
+                gconf = [c for c in configs if c.name not in self.profile.ghosting_techniques_skip]
+                for p in self.profile.ghosting:
+                    ghosts.append(planner.add_test(spec, scene, p, gconf, w, h, maps="none"))
+            if sweep and scene.name in self.profile.sweep_scenes:
+                proto = self.profile.ghosting[0] if is_animated(scene) else self.profile.static
+                sweeps.append(planner.add_test(spec, scene, proto, list(sweep), w, h, maps="none"))
+            planner.add_agreement(spec, scene, w, h)
+        plan = planner.plan
+        counts = plan.counts()
+        if plan.tasks:
+            self.log(f"study: {len(plan.tasks)} tasks to compute ({', '.join(f'{k} {n}' for k, n in sorted(counts.items()))})"
+                     f", {len(plan.cached)} complete; executor: {self.executor.describe()}")
+        results = execute(plan, self.executor, self.progress, self.log)
 
-        base = {"scene": scene.content_hash, "test": test, "schedule": [(s.t, s.k, s.keep, s.reset, s.prev_t) for s in schedule],
-                "res": (w, h), "raster": self.raster_code}
-        keys = {c.label: stable_hash({**base, "technique": c.key()}) for c in configs}
-        folders = {c.label: self.store.folder(test, scene.name, keys[c.label]) for c in configs}
-        runs, missing = {}, []
-        for c in configs:
-            got = self.store.load(folders[c.label], keys[c.label])
-            if got is None:
-                missing.append(c)
-            else:
-                runs[c.label] = got
-                self.stats["runs_cached"] += 1
-        if missing:
-            fresh = run_schedule(scene, w, h, schedule, missing, displays,
-                                 desc=f"{scene.name}: {test} ({', '.join(c.label for c in missing)})",
-                                 progress=self.progress)
-            for c in missing:
-                r = fresh[c.label]
-                meta = {"label": c.label, "technique": c.name, "overrides": list(c.overrides),
-                        "output_space": r["output_space"], "ms": r["ms"], "nonfinite": r["nonfinite"],
-                        "stats": {str(t): v for t, v in r["stats"].items()}}
-                self.store.save(folders[c.label], keys[c.label], r["images"], meta)
-                runs[c.label] = {"meta": {**meta, "frames": kept}, "images": r["images"]}
-                self.stats["runs_computed"] += 1
+        out = StudyResults()
+        out.stats = {"runs_computed": sum(len([r for r in v["runs"].values() if r["computed"]])
+                                          for v in results.values() if v["kind"] == "run"),
+                     "metrics_computed": sum(1 for v in results.values() if v["kind"] == "metrics" and v["computed"]),
+                     "references_rendered": sum(1 for v in results.values() if v["kind"] == "reference" and v["rendered"]),
+                     "tasks": counts}
+        out.stats["runs_cached"] = sum(len(t.configs) for t in statics + ghosts + sweeps) - out.stats["runs_computed"]
+        costs = self._costs(scenes, statics, results)
+        for spec, scene in scenes:
+            w, h = self.resolution(scene)
+            out.references[scene.name] = self.reference(scene, 0, w, h)
+            if scene.name in plan.agreements:
+                out.agreements[scene.name] = results[plan.agreements[scene.name]]["data"]
+        for t in statics:
+            full = self._result(t, results, costs)
+            out.statics.append(full)
+            for label, n in self.profile.static_views.items():
+                out.views.setdefault(label, []).append(_view(full, label, n))
+        for t in ghosts:
+            out.ghosts.setdefault(t.protocol.name, []).append(self._result(t, results, costs))
+        out.sweeps = [self._result(t, results, costs) for t in sweeps]
+        return out
 
-        res = TestResult(scene.name, test, kept, {}, {}, recomputed=[c.label for c in missing],
-                         reference_keys={t: refs[t].key for t in kept}, width=w, height=h)
-        ref8 = {t: displays[t].to_8bit(refs[t].image) for t in kept}
-        for c in configs:
-            run = runs[c.label]
-            mkey = stable_hash({"run": keys[c.label], "refs": [refs[t].key for t in kept], "code": self.metric_code})
-            mpath = folders[c.label] / f"metrics_{mkey}.json"
-            data = self.store.load_json(mpath, mkey)
-            if data is None:
-                data, maps = M.judge_run(run["images"], run["meta"]["output_space"], refs, displays, ref8, kept)
-                if test == "static":
-                    write_exr(folders[c.label] / f"maps_{mkey}.exr", maps)
-                self.store.save_json(mpath, mkey, data)
-                self.stats["metrics_computed"] += 1
-            res.per_frame[c.label] = {int(t): v for t, v in data["per_frame"].items()}
-            res.ms[c.label] = run["meta"]["ms"]
-            if run["meta"].get("stats"):
-                res.stats[c.label] = {int(t): v for t, v in run["meta"]["stats"].items()}
-            res.temporal[c.label] = data.get("temporal", math.nan)
-            res.artefacts[c.label] = {"folder": folders[c.label], "metrics_key": mkey, "run_key": keys[c.label],
-                                      "output_space": run["meta"]["output_space"], "technique": c.name,
-                                      "overrides": list(c.overrides)}
+    def _records(self, test):
+        from .store import Store
+        store = Store(self.cache.root)
+        return {c.label: store.done(Path(test.run_folders[c.label]), test.run_keys[c.label]) for c in test.configs}
+
+    def _result(self, test, results: dict, costs: dict) -> TestResult:
+        recs = self._records(test)
+        res = TestResult(test.scene, test.protocol.name, [], {}, {}, width=test.width, height=test.height,
+                         kind=test.protocol.kind,
+                         reference_keys={t: k for t, k in test.reference_tasks.items()})
+        frames = set()
+        for c in test.configs:
+            m = results[test.metrics_keys[c.label]]
+            if m["computed"]:
+                res.recomputed.append(c.label)
+            per = {int(f): v for f, v in m["data"]["per_frame"].items()}
+            res.per_frame[c.label] = per
+            frames |= set(per)
+            t = m["data"].get("temporal")
+            res.temporal[c.label] = math.nan if t is None else t
+            rec = recs[c.label] or {}
+            if rec.get("stats"):
+                res.stats[c.label] = {int(f): v for f, v in rec["stats"].items()}
+            cost = costs.get((test.scene, c.label), {})
+            res.costs[c.label] = cost
+            res.ms[c.label] = cost.get("total_ms", math.nan)
+            res.artefacts[c.label] = {"folder": test.run_folders[c.label], "run_key": test.run_keys[c.label],
+                                      "metrics_key": test.metrics_keys[c.label],
+                                      "metrics_folder": test.metrics_folders[c.label],
+                                      "output_space": (rec or {}).get("output_space", "linear"),
+                                      "technique": c.name, "overrides": list(c.overrides),
+                                      "maps_for": test.maps_for[c.label]}
+        res.frames = sorted(frames)
+        if test.protocol.kind == "static":
+            res.checkpoints = res.per_frame
         return res
 
-    # -- the floor under a comparison ------------------------------------------------------------
-    def agreement(self, scene: ResolvedScene) -> dict:
-        from study.agreement import check_agreement
-        w, h = self.resolution(scene)
-        samples = 256 if self.profile.use_full_resolution else 64
-        ref = self.reference(scene, 0, w, h)
-        key = stable_hash({"scene": scene.content_hash, "res": (w, h), "raster": self.raster_code,
-                           "ref": ref.key, "samples": samples, "code": source_hash("study/agreement.py")})
-        path = self.store.root / "agreement" / scene.name / f"{key}.json"
-        data = self.store.load_json(path, key)
-        if data is None:
-            a = check_agreement(scene, w, h, samples=samples, cache=self.cache,
-                                target_noise_db=self.profile.target_noise_db, progress=self.progress)
-            data = a.as_dict()
-            self.store.save_json(path, key, data)
-        return data
+    # -- costs: serial, after everything else ---------------------------------------------------------
+    def _costs(self, scenes, statics, results) -> dict:
+        from display import DisplayTransform
+
+        from . import costs as C
+        from .store import Store
+        store = Store(self.cache.root)
+        mach = C.machine()
+        out = {}
+        by_name = {scene.name: (spec, scene) for spec, scene in scenes}
+        todo = []
+        for test in statics:
+            spec, scene = by_name[test.scene]
+            recs = self._records(test)
+            for c in test.configs:
+                extra = 0.0
+                stats = (recs[c.label] or {}).get("stats") or {}
+                if stats:
+                    extra = sum(v["samples_shaded"] for v in stats.values()) / len(stats) / (test.width * test.height)
+                key = task_key("cost", {"scene": scene.content_hash, "res": (test.width, test.height),
+                                        "technique": c.key_data(), "machine": mach, "extra_spp": round(extra, 3)},
+                               code=[c.code(), "study.costs"])
+                path = store.record_path("costs", test.scene, key)
+                rec = store.load_record(path, key)
+                if rec is None:
+                    todo.append((test, scene, c, extra, key, path))
+                else:
+                    out[(test.scene, c.label)] = rec
+        if todo:
+            from tqdm import tqdm
+            refs = {}
+            for test, scene, c, extra, key, path in tqdm(todo, desc="costs (serial)", unit="technique",
+                                                          disable=not self.progress, file=sys.stderr):
+                if test.scene not in refs:
+                    refs[test.scene] = DisplayTransform.from_reference(
+                        self.reference(scene, 0, test.width, test.height).image)
+                got = C.measure(scene, test.width, test.height, [c], {0: refs[test.scene]}, {c.label: extra})[c.label]
+                out[(test.scene, c.label)] = store.save_record(path, key, got)
+        return out
+
+
+def _view(full: TestResult, label: str, n: int) -> TestResult:
+    """The static test as one protocol reads it: history length n (the checkpoint n for techniques
+    with history, the single judged frame for those without)."""
+    v = TestResult(full.scene, label, [n], {}, dict(full.ms), temporal=dict(full.temporal),
+                   stats={}, reference_keys=full.reference_keys, costs=full.costs, width=full.width,
+                   height=full.height, kind="static")
+    for l, per in full.per_frame.items():
+        f = n if n in per else max(per)
+        v.per_frame[l] = {n: per[f]}
+        v.artefacts[l] = {**full.artefacts[l], "frame": f}
+        if l in full.stats and f in full.stats[l]:
+            v.stats[l] = {n: full.stats[l][f]}
+    return v
+
+
+__all__ = ["Study", "StudyResults", "TestResult", "is_animated", "THESIS_HISTORY"]

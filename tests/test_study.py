@@ -54,7 +54,8 @@ def test_second_run_recomputes_nothing_and_one_changed_parameter_recomputes_one_
     a = "Uncharted=taa_baseline"
     b = "Improved=taa_improved"
     s1, out1 = _run(env, a, b)
-    assert s1["runs_computed"] == 4 and s1["runs_cached"] == 0          # static + ghosting, two techniques
+    # static + cold and warm ghosting, two techniques
+    assert s1["runs_computed"] == 6 and s1["runs_cached"] == 0
     assert s1["references_rendered"] == 5                               # frame 0 shared by both tests
     tables = env / "out" / "tables"
     static = (tables / "static_tiny_moving.md").read_text()
@@ -68,7 +69,7 @@ def test_second_run_recomputes_nothing_and_one_changed_parameter_recomputes_one_
     assert (tables / "static_tiny_moving.csv").stat().st_mtime_ns == mtime   # unchanged, not rewritten
 
     s3, _ = _run(env, "Uncharted=taa_baseline:sharpen=normalised", b)
-    assert s3["runs_computed"] == 2 and s3["runs_cached"] == 2 and s3["references_rendered"] == 0
+    assert s3["runs_computed"] == 3 and s3["runs_cached"] == 3 and s3["references_rendered"] == 0
 
 
 def test_interrupted_run_folder_is_not_read_back(env):
@@ -92,7 +93,7 @@ def test_ab_reports_paired_differences_and_gates(env):
     base = ["ab", "--scenes", str(env / "tiny.toml"), "--json"]
     r = CliRunner().invoke(main, base + ["taa_baseline:sharpen=normalised", "taa_baseline:sharpen=xu",
                                          "--max-worse", "psnr=0.0"], catch_exceptions=False)
-    out = json.loads(r.output)
+    out = json.loads(r.stdout)
     assert out["overall"]["psnr"]["n"] == 6                      # 1 static frame + 5 ghosting frames
     lo, hi = out["overall"]["psnr"]["ci"]
     assert lo <= out["overall"]["psnr"]["mean"] <= hi
@@ -100,6 +101,6 @@ def test_ab_reports_paired_differences_and_gates(env):
     assert out["overall"]["psnr"]["mean"] < 0 and "psnr" in out["failed"] and r.exit_code == 1
     r = CliRunner().invoke(main, base + ["taa_baseline:sharpen=xu", "taa_baseline:sharpen=normalised",
                                          "--max-worse", "psnr=0.0"], catch_exceptions=False)
-    assert r.exit_code == 0 and json.loads(r.output)["failed"] == {}
+    assert r.exit_code == 0 and json.loads(r.stdout)["failed"] == {}
     r = CliRunner().invoke(main, base + ["taa_baseline", "taa_improved", "--max-worse", "psnr"])
     assert r.exit_code == 2 and "METRIC=THRESHOLD" in r.output

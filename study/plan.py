@@ -1,0 +1,181 @@
+"""Planning: what a study computes, as a graph of pure, content-keyed tasks.
+
+A study is a list of tests (scene, protocol, techniques). For each the planner keys
+  reference   (scene, frame)                    -- study.tasks.reference_task
+  run         (scene, protocol, the techniques that share its raster frames) -- run_task
+  metrics     (one technique's run)             -- metrics_task
+  agreement   (scene)                           -- agreement_task
+from the keys of their inputs (provenance.task_key), and leaves out every task whose artefact is
+already complete in the cache. Where the tasks run is study.execute's business; the tables and
+figures made from their results are study.report's.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from provenance import task_key
+
+from . import tasks as T
+from .config import TechniqueConfig
+from .protocols import Protocol, judged_steps
+
+
+@dataclass
+class Task:
+    key: str
+    kind: str                     # reference | run | metrics | agreement
+    fn: object
+    args: tuple
+    deps: tuple = ()
+
+
+@dataclass
+class Test:
+    """One (scene, protocol, techniques) and the keys of everything it reads."""
+    scene: str                    # scene name
+    spec: str                     # what load_scene takes (built-in name or file path)
+    protocol: Protocol
+    configs: list
+    width: int
+    height: int
+    frame_times: dict = field(default_factory=dict)     # label -> {frame id: scene time}
+    run_keys: dict = field(default_factory=dict)        # label -> key
+    run_folders: dict = field(default_factory=dict)
+    metrics_keys: dict = field(default_factory=dict)
+    metrics_folders: dict = field(default_factory=dict)
+    reference_tasks: dict = field(default_factory=dict)  # scene time -> reference task key
+    maps_for: dict = field(default_factory=dict)        # label -> frame ids whose maps are kept
+
+
+@dataclass
+class Plan:
+    tasks: dict = field(default_factory=dict)           # key -> Task (only what must be computed)
+    tests: list = field(default_factory=list)
+    agreements: dict = field(default_factory=dict)      # scene name -> (key, path)
+    cached: dict = field(default_factory=dict)          # key -> result of a complete artefact
+
+    def counts(self) -> dict:
+        out: dict = {}
+        for t in self.tasks.values():
+            out[t.kind] = out.get(t.kind, 0) + 1
+        return out
+
+
+class Planner:
+    def __init__(self, ctx: T.Context, ref_settings: dict, agreement_samples: int | None):
+        from .store import Store
+        self.ctx, self.ref_settings, self.agreement_samples = ctx, dict(ref_settings), agreement_samples
+        self.store = Store(Path(ctx.cache_root))
+        self.plan = Plan()
+
+    # -- keys ----------------------------------------------------------------------------------------
+    def reference_key(self, scene, t: int, w: int, h: int) -> str:
+        return task_key("reference", {"scene": scene.content_hash, "t": t, "res": (w, h),
+                                      "camera": scene.camera(t, w, h).to_world.round(12).tolist(),
+                                      "settings": self.ref_settings},
+                        code=["references.cache", "references.render", "display"])
+
+    def _reference(self, spec: str, scene, t: int, w: int, h: int) -> str:
+        key = self.reference_key(scene, t, w, h)
+        if key not in self.plan.tasks:
+            self.plan.tasks[key] = Task(key, "reference", T.reference_task,
+                                        (self.ctx, spec, t, w, h, self.ref_settings))
+        return key
+
+    # -- tests -----------------------------------------------------------------------------------------
+    def add_test(self, spec: str, scene, protocol: Protocol, configs: list[TechniqueConfig],
+                 w: int, h: int, maps: str = "last") -> Test:
+        """Plan one test. `maps`: which judged frames keep their SSIM/FLIP maps
+        ('last': the last judged frame of each run; 'static': every static view; 'none')."""
+        schedule = protocol.schedule(scene)
+        test = Test(scene.name, spec, protocol, list(configs), w, h)
+        kept_t = sorted({s.t for s in schedule if s.keep})
+        ref_keys = {t: self.reference_key(scene, t, w, h) for t in kept_t}
+        sched = [(s.t, s.k, s.keep, s.reset, s.prev_t, s.frame) for s in schedule]
+        missing = []
+        for c in configs:
+            tech = c.make()
+            inp = tech.inputs
+            judged = judged_steps(schedule, inp.sampling)
+            test.frame_times[c.label] = {s.frame: s.t for s in judged}
+            # Display-space techniques see a display transform built from the reference.
+            inputs = [ref_keys[t] for t in kept_t] if inp.display else []
+            key = task_key("run", {"scene": scene.content_hash, "res": (w, h), "schedule": sched,
+                                   "technique": c.key_data()}, inputs, code=[type(tech), "study.protocols"])
+            folder = self.store.folder(protocol.kind, scene.name, key)
+            test.run_keys[c.label], test.run_folders[c.label] = key, str(folder)
+            frames = sorted(test.frame_times[c.label])
+            if maps == "none":
+                mf = []
+            elif maps == "static":
+                mf = sorted({max(f for f in frames if f <= v) for v in self._static_views(protocol) if
+                             any(f <= v for f in frames)} | {frames[-1]})
+            else:
+                mf = [frames[-1]]
+            test.maps_for[c.label] = mf
+            mkey = task_key("metrics", {"frames": test.frame_times[c.label], "maps": mf},
+                            [key] + [ref_keys[t] for t in sorted(set(test.frame_times[c.label].values()))],
+                            code=["study.metrics", "study.tasks"])
+            mfolder = self.store.root / "metrics" / scene.name / mkey
+            test.metrics_keys[c.label], test.metrics_folders[c.label] = mkey, str(mfolder)
+            mrec = self.store.done(mfolder, mkey, verify_files=bool(mf))
+            if mrec is not None and self._run_intact(folder, key, verify=bool(mf)):
+                self.plan.cached[mkey] = {"kind": "metrics", "key": mkey, "data": mrec["data"], "computed": False}
+                continue
+            missing.append(c)
+        test.reference_tasks = ref_keys
+        if missing:
+            need_run = [c for c in missing if self.store.done(Path(test.run_folders[c.label]),
+                                                              test.run_keys[c.label]) is None]
+            run_dep = ()
+            if need_run:
+                rdeps = tuple(self._reference(spec, scene, t, w, h) for t in kept_t) \
+                    if any(c.make().inputs.display for c in need_run) else ()
+                rkey = task_key("runs", sorted(test.run_keys[c.label] for c in need_run))
+                self.plan.tasks[rkey] = Task(rkey, "run", T.run_task, (
+                    self.ctx, spec, w, h, protocol, need_run, {c.label: test.run_keys[c.label] for c in need_run},
+                    {c.label: test.run_folders[c.label] for c in need_run}, self.ref_settings), rdeps)
+                run_dep = (rkey,)
+            for c in missing:
+                ts = sorted(set(test.frame_times[c.label].values()))
+                deps = run_dep + tuple(self._reference(spec, scene, t, w, h) for t in ts)
+                mkey = test.metrics_keys[c.label]
+                self.plan.tasks[mkey] = Task(mkey, "metrics", T.metrics_task, (
+                    self.ctx, spec, w, h, test.run_folders[c.label], test.run_keys[c.label],
+                    test.frame_times[c.label], self.ref_settings, test.maps_for[c.label], mkey,
+                    test.metrics_folders[c.label]), deps)
+        self.plan.tests.append(test)
+        return test
+
+    @staticmethod
+    def _static_views(protocol: Protocol):
+        from .config import THESIS_HISTORY
+        return (THESIS_HISTORY, protocol.history) if protocol.kind == "static" else ()
+
+    def _run_intact(self, folder: Path, key: str, verify: bool) -> bool:
+        """A run whose frames the report reads must be intact too (else it is re-made)."""
+        if not verify:
+            return True
+        return self.store.done(folder, key, verify_files=True) is not None
+
+    def add_agreement(self, spec: str, scene, w: int, h: int) -> None:
+        if not self.agreement_samples:
+            return
+        ref = self.reference_key(scene, 0, w, h)
+        key = task_key("agreement", {"scene": scene.content_hash, "res": (w, h), "samples": self.agreement_samples},
+                       [ref], code=["study.agreement"])
+        path = self.store.record_path("agreement", scene.name, key)
+        self.plan.agreements[scene.name] = key
+        data = self.store.load_record(path, key)
+        if data is not None:
+            self.plan.cached[key] = {"kind": "agreement", "key": key, "data": data, "computed": False}
+            return
+        self.plan.tasks[key] = Task(key, "agreement", T.agreement_task, (
+            self.ctx, spec, w, h, self.agreement_samples, self.ref_settings, key, str(path)),
+            (self._reference(spec, scene, 0, w, h),))
+
+
+def finite_or_none(v):
+    return None if v is None or (isinstance(v, float) and not math.isfinite(v)) else v
