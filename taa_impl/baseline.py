@@ -4,6 +4,19 @@ Sharpening is applied to the displayed output only; the history keeps the unshar
 the sharpen as a separate pass after TAA, INSIDE's history is the plain blend). Sharpening the
 history would compound the kernel every frame (with Xu's 5/-1 kernel it diverges).
 
+The displayed output is max(sharpened blend, 0). The sharpen undershoots next to HDR edges (on
+hdr_contrast, 1000 beside ~0, Xu's kernel gives -4000 and the normalised one -1000, at ~16 % of the
+pixels at 96x54); a negative radiance cannot be displayed, and the display transform clamps at 0
+anyway, so the 8-bit metrics (PSNR, SSIM, FLIP) are the same with or without this clamp. It
+matters only for the linear-HDR relative MSE, which therefore judges the image that is shown
+(a black pixel) rather than the undershoot's size. The history is not clamped: it lies in the
+neighbourhood's colour range (the clip ends in a clamp into the box), so with the RGB box it is
+>= 0 for inputs >= 0 (a YCoCg box can reach outside the RGB cube).
+
+Step 4's clip carries a tolerance relative to the box's magnitude (TAAParams.clip_tol, 1e-4) on top
+of INSIDE's eps, and ends in a clamp into the box: with eps alone float32 rounding decided the
+clip (kernels.clip_toward_centre says how; clip_tol=0 gives INSIDE's clip).
+
 The current colour c is the raster's jittered sample as is (the spec's "un-jittered sample": we do
 not resample it; jitter only moves where the sample was taken).
 

@@ -316,7 +316,8 @@ def feedback_weight(lum_c, lum_h, k_min: float, k_max: float, floor: float):
 
 
 def sharpen(grid: Grid, img, w: float):
-    """Cross kernel [[0,-w,0],[-w,1+4w,-w],[0,-w,0]] as img + w * sum(img - n), clamped to >= 0."""
+    """Cross kernel [[0,-w,0],[-w,1+4w,-w],[0,-w,0]] as img + w * sum(img - n), clamped to >= 0
+    (the displayed output: a negative radiance cannot be shown; see taa_impl.baseline)."""
     if w == 0.0:
         return dr.maximum(img, 0.0)
     s = img - grid.tap(img, 0, -1)
