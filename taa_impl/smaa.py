@@ -13,16 +13,19 @@ Antialiasing"), in Dr.Jit, following the three passes of the reference shader (S
     - Diagonals first (for pixels with a top edge; max_search_steps_diag > 0): searches along both
       diagonals, one pixel per step, while the step pixels carry both of their edges (the '\'
       search reads a pixel's top and right edges); runs of >= 4 pixels get the diagonal area
-      (`smaa_area.diag_area`), with the crossing edges at the run's ends (cleared where the end
-      was not found within the search range). A pixel with a diagonal skips steps below, its left
-      edge included, as in the reference.
+      (`smaa_area.diag_area_lookup`) from their two distances and the crossing codes at the run's
+      ends (cleared where the end was not found within the search range); the '\' run is looked up
+      in the '/' frame flipped vertically (distances up-left, down-right; r and g swapped), as the
+      reference does. A pixel with a diagonal skips steps below, its left edge included, as in the
+      reference.
     - Orthogonal: searches left / right (top edge) or up / down (left edge) with one bilinear
       fetch per two pixels (the "pseudo gather4": offsets -0.25 / -0.125 px), while both fetched
       pixels carry the edge and no crossing edge is seen, at most max_search_steps fetches a side;
       the last fetch is decoded through the search function (`smaa_area.SEARCH_TABLE`) to the
       exact end pixel. The crossing edges at both ends are read with one bilinear fetch each
-      (0.25 * before side + 0.75 * after side) and the area function (`smaa_area.ortho_area`) gives
-      the two weights.
+      (0.25 * before side + 0.75 * after side) and the area function
+      (`smaa_area.ortho_area_lookup`: L, Z and U shapes, a '+' end facing a bend as a Z, short U
+      shapes smoothed) gives the two weights.
     - Corner rounding: if the crossing edge at the nearer end continues for a second pixel (a real
       corner, not a one-pixel stair step), the weight on that side is scaled by
       corner_rounding / 100 (both ends at the same distance: half each); 100 = off.
@@ -35,6 +38,13 @@ Antialiasing"), in Dr.Jit, following the three passes of the reference shader (S
 Presets: defaults are SMAA_PRESET_ULTRA (threshold 0.05, 32 search steps, 16 diagonal steps, corner
 rounding 25); `SMAA_PRESETS` holds the others (low, medium, high) as parameter overrides.
 
+Area functions (`area`, see smaa_area's docstring): 'reference' (the default, and what the study's
+SMAA column uses) evaluates them as the reference's area texture holds them -- orthogonal areas at
+squared distances interpolated in sqrt(distance), diagonal areas by 30 x 30 point sampling, both
+as 8-bit bytes (computed here; they equal the reference's AreaTex.h byte for byte) -- so the
+weights are the reference shader's. 'exact' integrates the same revectorised lines exactly at the
+actual distances (closer to the paper's definition; up to ~0.08 apart at non-square distances).
+
 Choices and deviations (see also smaa_area's docstring):
 - Input: the display image, `display.encode(colour)` (tone map + sRGB, floats in [0, 1]); the output
   is display-encoded (output_space 'display'), clamped to [0, 1].
@@ -42,16 +52,12 @@ Choices and deviations (see also smaa_area's docstring):
   only, so the bilinear mixes happen in linear light: we sRGB-decode the display image for the
   fetches and re-encode the mix. 'display' blends the encoded values directly (what happens when
   sRGB reads are not available). Pixels that are not blended are returned bit-exactly.
-- Area and search functions are computed, not tabulated: the orthogonal area is the exact integral
-  of the revectorised line for the integer distances (the reference samples a texture tabulated at
-  squared distances, bilinearly in sqrt(distance)); the diagonal area is our own construction from
-  the same revectorisation principle (the reference's diagonal texture averages several line
-  placements); crossing edges on both sides of a segment end count as no bend; no smoothing of
-  short U shapes.
+- Area and search tables are computed here from their definitions, not copied (smaa_area).
 - Texture reads use clamp-to-edge, like the reference's samplers, with exact float bilinear weights
-  (GPUs quantise them; the pseudo-gather values are exact multiples of 1/32 either way). Blending
-  weights outside the image are 0 (the reference's clamped read of blendTex would let a border pixel
-  read its own left/top weights as its right/bottom neighbour's).
+  (GPUs quantise them to ~8 bits; the pseudo-gather values are exact multiples of 1/32 either way,
+  and the area texture is read at exact float sqrt distances). The blending pass reads the weights
+  clamp-to-edge too, as the reference does: a pixel in the last column takes its own a as its
+  right neighbour's, one in the bottom row its own g as its bottom neighbour's.
 - Edge search, area and blending are symmetric under transposing the image, except that (as in the
   reference) diagonals are only searched from top edges and their weights always blend vertically,
   and the blending pass sends ties max(horizontal) == max(vertical) to vertical.
@@ -92,6 +98,8 @@ SEARCH_BIAS = 3.25          # undoes the -0.25 offset, the search's bias of 1 an
 CROSSING_ACROSS = 0.25      # crossing-edge fetch: -0.25 px across (0.25 before + 0.75 after side)
 DIAG_CONTINUE = 0.9         # mean of the two edges of a diagonal step pixel: both on
 DIAG_MIN_SUM = 2.0          # a diagonal needs d1 + d2 > 2, i.e. a run of at least 4 pixels
+MAX_SEARCH_STEPS_REFERENCE = 112       # SMAA_MAX_SEARCH_STEPS range [0, 112]
+MAX_SEARCH_STEPS_DIAG_REFERENCE = 20   # SMAA_MAX_SEARCH_STEPS_DIAG range [0, 20]
 
 
 @dataclass(frozen=True)
@@ -104,6 +112,8 @@ class SMAAParams:
     luma: str = "rec709"                    # luma weights on the encoded values: 'rec709' | 'rec601'
     blend_space: str = "linear"             # 'linear' (sRGB-decoded fetches) | 'display'
     min_blend_weight: float = 1e-5          # pixels whose four weights sum below this are kept
+    area: str = "reference"                 # 'reference': areaTex as the reference tabulates it
+    #                                         (the study's column) | 'exact' (see smaa_area)
 
     def __post_init__(self):
         if not 0.0 < self.threshold <= 1.0:
@@ -124,6 +134,15 @@ class SMAAParams:
             raise ValueError(f"blend_space must be one of {BLEND_SPACES}")
         if not self.min_blend_weight >= 0.0:
             raise ValueError("min_blend_weight must be >= 0")
+        if self.area not in A.AREA_MODES:
+            raise ValueError(f"area must be one of {A.AREA_MODES}, got {self.area!r}")
+        # The reference's ranges; its area texture covers exactly these search lengths.
+        if self.area == "reference" and self.max_search_steps > MAX_SEARCH_STEPS_REFERENCE:
+            raise ValueError(f"max_search_steps must be <= {MAX_SEARCH_STEPS_REFERENCE} with "
+                             "area='reference' (the area texture's range); use area='exact'")
+        if self.area == "reference" and self.max_search_steps_diag > MAX_SEARCH_STEPS_DIAG_REFERENCE:
+            raise ValueError(f"max_search_steps_diag must be <= {MAX_SEARCH_STEPS_DIAG_REFERENCE} "
+                             "with area='reference' (the area texture's range); use area='exact'")
 
 
 class SMAA(DisplayImageTechnique):
@@ -220,7 +239,7 @@ def ortho_weights(grid, E, xi, yi, axis: _Axis, p: SMAAParams):
     e1 = axis.comp(K.bilinear(grid, E, *axis.xy(c_neg, cross_at)), axis.cross)
     e2 = axis.comp(K.bilinear(grid, E, *axis.xy(c_pos + 1.0, cross_at)), axis.cross)
     code1, code2 = dr.round(4.0 * e1), dr.round(4.0 * e2)
-    w_after, w_before = A.ortho_area(d_neg, d_pos, A.end_height(code1), A.end_height(code2))
+    w_after, w_before = A.ortho_area_lookup(d_neg, d_pos, code1, code2, p.area)
     if p.corner_rounding < 100.0:
         near_neg = mi.Float(d_neg <= d_pos)
         near_pos = mi.Float(d_pos <= d_neg)
@@ -283,7 +302,7 @@ def diag_weights(grid, E, xi, yi, e, p: SMAAParams):
     cc_top = 2.0 * tex(xi + it + 1, yi - it).y + tex(xi + it + 1, yi - it - 1).x
     cc_bot = dr.select(w_bot >= DIAG_CONTINUE, 0.0, cc_bot)   # end not found: no crossing edge
     cc_top = dr.select(w_top >= DIAG_CONTINUE, 0.0, cc_top)
-    r1, g1 = A.diag_area(d_bot, d_top, *A.diag_offsets(cc_bot, cc_top))
+    r1, g1 = A.diag_area_lookup(d_bot, d_top, cc_bot, cc_top, p.area, steps)
     ok1 = d_bot + d_top > DIAG_MIN_SUM
 
     # '\' : step pixels (x + k, y + k) with top and right edges; mirrored, the same construction.
@@ -297,7 +316,9 @@ def diag_weights(grid, E, xi, yi, e, p: SMAAParams):
     cc_bot2 = 2.0 * tex(xi + ib2 + 1, yi + ib2).y + tex(xi + ib2 + 1, yi + ib2).x
     cc_top2 = dr.select(w_top2 >= DIAG_CONTINUE, 0.0, cc_top2)
     cc_bot2 = dr.select(w_bot2 >= DIAG_CONTINUE, 0.0, cc_bot2)
-    r2, g2 = A.diag_area(d_bot2, d_top2, *A.diag_offsets(cc_bot2, cc_top2))
+    # The '\' run is the '/' frame flipped vertically (the pixel above and the current one
+    # trade places): its up-left end is the frame's bottom end, and r and g swap.
+    g2, r2 = A.diag_area_lookup(d_top2, d_bot2, cc_top2, cc_bot2, p.area, steps)
     ok2 = d_bot2 + d_top2 > DIAG_MIN_SUM
 
     r = dr.select(ok1, r1, 0.0) + dr.select(ok2, r2, 0.0)
@@ -350,8 +371,10 @@ def srgb_encode(lin):
 def neighbourhood_blend(grid: K.Grid, rgb, weights, p: SMAAParams):
     """SMAANeighborhoodBlendingPS on the display-encoded image `rgb` with weights (r, g, b, a)."""
     R, G, B, Aw = weights
-    a_x = dr.select(grid.x < grid.w - 1, grid.tap(Aw, 1, 0), 0.0)   # right neighbour's a
-    a_y = dr.select(grid.y < grid.h - 1, grid.tap(G, 0, 1), 0.0)    # bottom neighbour's g
+    # Clamp-to-edge reads, as the reference's sampler: the last column reads its own a as its
+    # right neighbour's, the bottom row its own g.
+    a_x = grid.tap(Aw, 1, 0)    # right neighbour's a
+    a_y = grid.tap(G, 0, 1)     # bottom neighbour's g
     a_z, a_w = B, R                                                  # own b (left), r (top)
     blend = (a_x + a_y + a_z + a_w) >= p.min_blend_weight
     horiz = dr.maximum(a_x, a_z) > dr.maximum(a_y, a_w)

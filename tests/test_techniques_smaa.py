@@ -1,7 +1,9 @@
 """SMAA 1x (ULTRA preset): hand-computed area values for orthogonal and diagonal patterns, corner
 rounding, the search function, invariants (flat images, range, transpose symmetry, long straight
 edges), a scalar oracle of the orthogonal blending-weight pass and a NumPy oracle of the
-neighbourhood blending pass."""
+neighbourhood blending pass. Hand values of the exact area functions use area='exact'; the
+reference's tabulation (the default) is checked here where it is exact (perfect squares, long
+runs) and in tests/test_smaa_reference_cases.py."""
 from __future__ import annotations
 
 import numpy as np
@@ -57,16 +59,19 @@ def test_registry_params_and_presets():
     # SMAA_PRESET_ULTRA + the reference's local contrast adaptation factor
     assert (p.threshold, p.max_search_steps, p.max_search_steps_diag, p.corner_rounding,
             p.local_contrast_adaptation) == (0.05, 32, 16, 25.0, 2.0)
-    assert (p.luma, p.blend_space) == ("rec709", "linear")
+    assert (p.luma, p.blend_space, p.area) == ("rec709", "linear", "reference")
     assert SMAA_PRESETS["ultra"] == dict(threshold=0.05, max_search_steps=32,
                                          max_search_steps_diag=16, corner_rounding=25.0)
     assert taa_impl.make("smaa", **SMAA_PRESETS["high"]).params.max_search_steps == 16
     assert hash(p) == hash(taa_impl.make("smaa").params)
     for bad in (dict(threshold=0.0), dict(max_search_steps=0), dict(max_search_steps_diag=-1),
                 dict(max_search_steps=2.5), dict(corner_rounding=101), dict(luma="green"),
-                dict(blend_space="hdr"), dict(local_contrast_adaptation=0.0)):
+                dict(blend_space="hdr"), dict(local_contrast_adaptation=0.0), dict(area="texture"),
+                dict(max_search_steps=113), dict(max_search_steps_diag=21)):
         with pytest.raises(ValueError):
             SMAAParams(**bad)
+    # beyond the reference's area texture only the exact area functions apply
+    assert SMAAParams(max_search_steps=200, max_search_steps_diag=30, area="exact").max_search_steps == 200
     with pytest.raises(ValueError):   # a 'display' technique needs the display transform
         t.process({"color": np.zeros((4, 4, 3), F)}, jitter=(0, 0), far=1.0)
 
@@ -153,7 +158,7 @@ def test_z_pattern_gets_the_revectorised_line_areas(blend_space):
     i.e. r = (15.5 - x) / 16 for x <= 15, g = (x - 15.5) / 16 for x >= 16. No corner rounding: the
     crossing edges do not continue (pixels (8, 11) / (24, 8) have no left edge)."""
     img = boundary_image(16, 40, lambda x: 11 if x < 8 else (10 if x < 24 else 9))
-    out, t = smaa(img, blend_space=blend_space)
+    out, t = smaa(img, blend_space=blend_space, area="exact")
     r, g = t["weight_r"][10], t["weight_g"][10]
     assert r[8] == pytest.approx(0.46875, abs=1e-6) and r[9] == pytest.approx(0.40625, abs=1e-6)
     assert r[15] == pytest.approx(0.03125, abs=1e-6) and g[16] == pytest.approx(0.03125, abs=1e-6)
@@ -189,7 +194,7 @@ def test_long_edge_with_one_pixel_step_uses_the_capped_search_distance():
     A one-pixel step is not a corner (the crossing edge does not continue into rows 8 or 11), so
     corner rounding leaves these weights alone."""
     img = boundary_image(16, 160, lambda x: 10 if x < 80 else 9)
-    out, t = smaa(img, blend_space="display")
+    out, t = smaa(img, blend_space="display", area="exact")
     g10, r9 = t["weight_g"][10], t["weight_r"][9]
     assert g10[79] == pytest.approx(0.4921875, abs=1e-6)
     assert g10[78] == pytest.approx(0.5 * 31 / 32.5, abs=1e-6)
@@ -210,19 +215,23 @@ def test_long_edge_with_one_pixel_step_uses_the_capped_search_distance():
 def test_corner_rounding_keeps_25_percent_at_square_corners():
     """White square rows/cols 8..23 on black. Its top edge (row 8, x = 8..23, d = 16) has crossing
     edges below the line at both ends: U shape, the line falls from -1/2 at both ends to 0 in the
-    middle; r = 0.5 * (8 - t_mid) / 8 on the left half: x = 8 -> 0.46875, x = 15 -> 0.03125.
+    middle; A = 0.5 * (8 - t_mid) / 8 on the left half: x = 8 -> 0.46875, x = 15 -> 0.03125.
+    A U shorter than 32 is smoothed: A -> lerp(sqrt(2 A) / 2, A, 16 / 32) = (A + sqrt(2 A) / 2) / 2:
+      x = 8:  (0.46875 + sqrt(0.9375) / 2) / 2 = 0.4764364...
+      x = 15: (0.03125 + sqrt(0.0625) / 2) / 2 = (0.03125 + 0.125) / 2 = 0.078125
     The crossing edges continue downwards (the square's sides), so the weights on that side are
-    scaled by corner_rounding / 100 = 0.25 at the nearer end: x = 8 -> 0.1171875,
-    x = 15 -> 0.0078125. With corner_rounding = 100 corner detection is off."""
+    scaled by corner_rounding / 100 = 0.25 at the nearer end. With corner_rounding = 100 corner
+    detection is off."""
     img = grey(np.pad(np.ones((16, 16), F), 8))
-    _, t = smaa(img)
-    assert t["weight_r"][8, 8] == pytest.approx(0.46875 * 0.25, abs=1e-7)
-    assert t["weight_r"][8, 15] == pytest.approx(0.03125 * 0.25, abs=1e-7)
-    assert t["weight_r"][8, 16] == pytest.approx(0.03125 * 0.25, abs=1e-7)
-    assert t["weight_b"][8, 8] == pytest.approx(0.46875 * 0.25, abs=1e-7)   # the left side too
-    _, t = smaa(img, corner_rounding=100)
-    assert t["weight_r"][8, 8] == pytest.approx(0.46875, abs=1e-7)
-    assert t["weight_r"][8, 15] == pytest.approx(0.03125, abs=1e-7)
+    a8 = (0.46875 + np.sqrt(0.9375) / 2) / 2
+    _, t = smaa(img, area="exact")
+    assert t["weight_r"][8, 8] == pytest.approx(a8 * 0.25, abs=1e-7)
+    assert t["weight_r"][8, 15] == pytest.approx(0.078125 * 0.25, abs=1e-7)
+    assert t["weight_r"][8, 16] == pytest.approx(0.078125 * 0.25, abs=1e-7)
+    assert t["weight_b"][8, 8] == pytest.approx(a8 * 0.25, abs=1e-7)   # the left side too
+    _, t = smaa(img, corner_rounding=100, area="exact")
+    assert t["weight_r"][8, 8] == pytest.approx(a8, abs=1e-7)
+    assert t["weight_r"][8, 15] == pytest.approx(0.078125, abs=1e-7)
 
 
 def test_long_vertical_edge_is_unchanged_far_from_its_ends():
@@ -240,38 +249,47 @@ def test_long_vertical_edge_is_unchanged_far_from_its_ends():
     img = np.zeros((200, 8), F)
     img[20:180, 4:] = 1.0
     img = grey(img)
-    out, t = smaa(img, blend_space="display")
-    assert np.array_equal(out[84:116], img[84:116])
-    b = t["weight_b"][:, 4]
-    assert not b[84:116].any() and not t["weight_a"][84:116].any()
-    assert (b[21:84] > 0).all() and (b[116:179] > 0).all()
-    assert not np.array_equal(out[21:84], img[21:84])
-    assert b[21] == pytest.approx(0.5 * 31.5 / 33 * 0.25, abs=1e-7)
+    for area in ("exact", "reference"):
+        out, t = smaa(img, blend_space="display", area=area)
+        assert np.array_equal(out[84:116], img[84:116])
+        b = t["weight_b"][:, 4]
+        assert not b[84:116].any() and not t["weight_a"][84:116].any()
+        assert (b[21:84] > 0).all() and (b[116:179] > 0).all()
+        assert not np.array_equal(out[21:84], img[21:84])
+    _, t = smaa(img, blend_space="display", area="exact")
+    assert t["weight_b"][21, 4] == pytest.approx(0.5 * 31.5 / 33 * 0.25, abs=1e-7)
 
 
 # ------------------------------------------------------------------------------ diagonal areas
-@pytest.mark.parametrize("blend_space", ["display", "linear"])
-def test_45_degree_staircase_gets_the_diagonal_area(blend_space):
+@pytest.mark.parametrize("blend_space, area, r, g", [("display", "exact", 0.25, 0.25),
+                                                     ("linear", "exact", 0.25, 0.25),
+                                                     ("display", "reference", 66 / 255, 61 / 255)])
+def test_45_degree_staircase_gets_the_diagonal_area(blend_space, area, r, g):
     """White where x + y >= 47 (48 x 48): every pixel on x + y = 47 has a left and a top edge (a
     '/' staircase). Away from its ends (more than 16 steps: the diagonal searches stop at 15 with
-    the end not found, so no crossing edges) the revectorised line goes through the midpoints of
-    the unit steps: in the step pixel's frame [0,1]^2 (v up) it is v = u + 1/2. The step pixel's
-    part above the line is the triangle (0, 1/2), (0, 1), (1/2, 1): r = 1/8; the part of the pixel
-    above it below the line is the triangle (1/2, 1), (1, 1), (1, 3/2): g = 1/8. So the white step
-    pixel becomes 7/8 white, the black pixel above it 1/8 white."""
+    the end not found, so no crossing edges) neither end tells how the edge goes on, and the area
+    is the mean over the two 45-degree lines through the staircase's outer corners (the step
+    pixel lies below it: r = 0; the pixel above is cut in half: g = 1/2) and through its inner
+    corners (r = 1/2, g = 0): r = g = 1/4 exactly.
+    The reference's texture counts points of a closed 30 x 30 lattice strictly below each line:
+    the outer line misses only the step pixel's top-left corner (899 of 900 below) and halves the
+    pixel above (435 below, the 30 on the diagonal count as above); the inner line halves the step
+    pixel (435) and misses the pixel above (0). r = ((1 - 899/900) + (1 - 435/900)) / 2 = 0.25889,
+    g = (435/900 + 0) / 2 = 0.24167; as bytes floor(255 r) = 66, floor(255 g) = 61."""
     n = 48
     yy, xx = np.mgrid[0:n, 0:n]
     img = grey((xx + yy >= n - 1).astype(F))
-    out, t = smaa(img, blend_space=blend_space)
+    out, t = smaa(img, blend_space=blend_space, area=area)
     xs = np.arange(17, 31)
     ys = n - 1 - xs
     assert t["diagonal"][ys, xs].all()
-    np.testing.assert_allclose(t["weight_r"][ys, xs], 0.125, atol=1e-7)
-    np.testing.assert_allclose(t["weight_g"][ys, xs], 0.125, atol=1e-7)
+    np.testing.assert_allclose(t["weight_r"][ys, xs], r, atol=1e-7)
+    np.testing.assert_allclose(t["weight_g"][ys, xs], g, atol=1e-7)
     assert not t["weight_b"].any()          # diagonals skip the vertical processing
     enc = srgb_encode if blend_space == "linear" else (lambda v: v)
-    np.testing.assert_allclose(out[ys, xs], np.broadcast_to(enc(0.875), (len(xs), 3)), atol=2e-6)
-    np.testing.assert_allclose(out[ys - 1, xs], np.broadcast_to(enc(0.125), (len(xs), 3)), atol=2e-6)
+    # the white step pixel takes r of the black one above; the black one g of the white below
+    np.testing.assert_allclose(out[ys, xs], np.broadcast_to(enc(1 - r), (len(xs), 3)), atol=2e-6)
+    np.testing.assert_allclose(out[ys - 1, xs], np.broadcast_to(enc(g), (len(xs), 3)), atol=2e-6)
     # away from the staircase nothing changes
     far = np.abs(xx + yy - (n - 1)) > 1
     assert np.array_equal(out[far], img[far])
@@ -281,18 +299,17 @@ def test_staircase_between_two_flats_gets_the_bent_diagonal_area():
     """A 45-degree run between two horizontal flats: the boundary row is 14 for x <= 10, 24 - x for
     10 <= x <= 19 and 5 for x >= 19 (white below). The diagonal run is x = 10..19 (n = 10; x = 10
     is the bottom end, a pixel with a top edge only, which the search includes). At both ends the
-    boundary continues horizontally (a flatter edge), which moves the bottom end of the line up by
-    1/2 and the top end down by 1/2, each joined to the run's middle on the midline
-    v = u + 1/2. Pixel x = 12 (dl = 2, dr = 7): in its frame the run spans u in [-2, 8], middle
-    u_m = 3, and on [0, 1] the line is v = u + 1/2 + delta(u), delta = 0.5 * (3 - u) / 5:
-      above the line in the pixel: integral of max(0, 1 - v) = max(0, 0.2 - 0.9 u) -> 0.2^2 / 1.8
-        = 1/45 = 0.0222...  (r)
-      below the line in the pixel above: integral of max(0, v - 1) = max(0, 0.9 u - 0.2)
-        -> 0.7^2 / 1.8 = 0.2722...  (g)
-    Pixel x = 15 (dl = 5, dr = 4): u_m = 0, delta = -0.5 * u / 5 on [0, 1]: 1 - v = 0.5 - 0.9 u:
+    boundary continues horizontally (crossing code 2 at both ends: a flatter edge), so the line
+    runs from the run's first outer corner to the inner corner after its last step: in the '/'
+    frame (y up, step pixels [1 + k, 2 + k] x [k, 1 + k]) from (1, 1) to (n + 1, n) = (11, 10),
+    y = 1 + 0.9 (x - 1). Pixel x = 12 is step dl = 2 (dr = 7): the square [3, 4] x [2, 3], where
+    the line rises from 2.8 to 3.7:
+      above the line in the pixel: the triangle left of x = 3 + 0.2 / 0.9: 0.2^2 / 1.8 = 1/45  (r)
+      below the line in the pixel above, [3, 4]^2: the triangle right of that x: 0.7^2 / 1.8  (g)
+    Pixel x = 15 (dl = 5, dr = 4): the square [6, 7] x [5, 6], the line from 5.5 to 6.4:
       r = 0.5^2 / 1.8 = 0.13888..., g = 0.4^2 / 1.8 = 0.08888..."""
     img = boundary_image(24, 32, lambda x: 24 - min(max(x, 10), 19))
-    out, t = smaa(img, blend_space="display")
+    out, t = smaa(img, blend_space="display", area="exact")
     assert t["diagonal"][24 - np.arange(10, 20), np.arange(10, 20)].all()
     assert t["weight_r"][12, 12] == pytest.approx(0.2 ** 2 / 1.8, abs=1e-6)
     assert t["weight_g"][12, 12] == pytest.approx(0.7 ** 2 / 1.8, abs=1e-6)
@@ -301,12 +318,12 @@ def test_staircase_between_two_flats_gets_the_bent_diagonal_area():
     assert out[12, 12, 0] == pytest.approx(1 - 0.2 ** 2 / 1.8, abs=1e-6)
     assert out[11, 12, 0] == pytest.approx(0.7 ** 2 / 1.8, abs=1e-6)
     # the same run with diagonal detection off is handled as short orthogonal segments instead
-    _, t0 = smaa(img, blend_space="display", max_search_steps_diag=0)
+    _, t0 = smaa(img, blend_space="display", max_search_steps_diag=0, area="exact")
     assert not t0["diagonal"].any() and t0["weight_r"][12, 12] != t["weight_r"][12, 12]
     # mirrored left-right it is a '\' run (the second diagonal search, on top and right edges):
     # the same weights at the mirrored pixels
     xs = np.arange(10, 20)
-    _, tm = smaa(img[:, ::-1].copy(), blend_space="display")
+    _, tm = smaa(img[:, ::-1].copy(), blend_space="display", area="exact")
     assert tm["diagonal"][24 - xs, 31 - xs].all()
     for k in ("weight_r", "weight_g"):
         np.testing.assert_array_equal(tm[k][24 - xs, 31 - xs], t[k][24 - xs, xs])
@@ -316,12 +333,13 @@ def test_staircase_between_two_verticals_gets_the_steeper_diagonal_area():
     """The previous image transposed: white iff x >= 24 - clamp(y, 10, 19). Its diagonal run is
     (24 - y, y) for y = 11..19 (n = 9; (14, 10) has a left edge only and ends the run at the top).
     Both ends continue vertically (a steeper edge): the bottom end (5, 19) has its own left edge
-    (code 1: line lowered by 1/2), the pixel past the top end, (14, 10), has a left edge (code 1:
-    raised by 1/2). Pixel (12, 12): dl = 7, dr = 1, u_m = (1 + 1 - 7) / 2 = -2.5, so on [0, 1]
-    delta = 0.5 * (u + 2.5) / 4.5 and 1 - v = 0.5 - u - delta = 2/9 - 10 u / 9:
+    (code 1), the pixel past the top end, (14, 10), has a left edge (code 1), so the line runs from
+    the run's first inner corner (1, 0) to the outer corner after its last step, (n + 1, n + 1) =
+    (10, 10): y = (10 / 9) (x - 1). Pixel (12, 12) is step dl = 7 (dr = 1): the square
+    [8, 9] x [7, 8], where the line rises from 70/9 to 80/9, crossing y = 8 at x = 8.2:
       r = (2/9)^2 / (2 * 10/9) = 1/45,  g = (8/9)^2 / (2 * 10/9) = 32/90."""
     img = boundary_image(24, 32, lambda x: 24 - min(max(x, 10), 19)).transpose(1, 0, 2).copy()
-    _, t = smaa(img, blend_space="display")
+    _, t = smaa(img, blend_space="display", area="exact")
     ys = np.arange(11, 20)
     assert t["diagonal"][ys, 24 - ys].all() and not t["diagonal"][10, 14]
     assert t["weight_r"][12, 12] == pytest.approx(1 / 45, abs=1e-6)
@@ -361,7 +379,8 @@ def test_transposed_image_gives_transposed_weights_and_output(seed):
             assert np.array_equal(t[a], tT[b].T) and np.array_equal(t[b], tT[a].T)
         ax = np.pad(t["weight_a"][:, 1:], ((0, 0), (0, 1)))   # right neighbour's a
         ay = np.pad(t["weight_g"][1:, :], ((0, 1), (0, 0)))   # bottom neighbour's g
-        tie = (np.maximum(ax, t["weight_b"]) == np.maximum(ay, t["weight_r"])) & (ax + ay > 0)
+        mh, mv = np.maximum(ax, t["weight_b"]), np.maximum(ay, t["weight_r"])
+        tie = (mh == mv) & (mh > 0)
         same = ~tie
         assert same.mean() > 0.9 and (t["weight_r"] > 0).sum() > 20
         np.testing.assert_array_equal(out[same], outT.transpose(1, 0, 2)[same])
@@ -370,20 +389,42 @@ def test_transposed_image_gives_transposed_weights_and_output(seed):
 # ------------------------------------------------------------------------------ scalar oracle
 def area_numeric(dl, dr, h_start, h_end, samples=4000):
     """Orthogonal area by midpoint integration of the revectorised line over [dl, dl + 1]:
-    (mean of max(-h, 0), mean of max(h, 0))."""
+    (mean of max(-h, 0), mean of max(h, 0)); a U (both heights of one sign) has each half's
+    area A smoothed to lerp(sqrt(2 A) / 2, A, min(d / 32, 1))."""
     d = dl + dr + 1
     m = d / 2
     t = dl + (np.arange(samples) + 0.5) / samples
     h = np.where(t <= m, h_start * (m - t) / m, h_end * (t - m) / m)
-    return np.maximum(-h, 0).mean(), np.maximum(h, 0).mean()
+    k = min(d / 32, 1.0)
+    out = [0.0, 0.0]
+    for half in (t <= m, t > m):
+        for i, part in enumerate((np.maximum(-h, 0), np.maximum(h, 0))):
+            a = part[half].sum() / samples
+            if h_start * h_end > 0:
+                a = np.sqrt(2 * a) / 2 + (a - np.sqrt(2 * a) / 2) * k
+            out[i] += a
+    return out[0], out[1]
+
+
+def pattern_heights(c1, c2):
+    """Heights at the two ends from the crossing codes (1: above, +1/2; 3: below, -1/2; 0: none);
+    an end with crossing edges on both sides (4) takes the opposite of a single bend at the other
+    end (a Z) and stays flat otherwise."""
+    bend = {0: 0.0, 1: 0.5, 3: -0.5}
+    h1, h2 = bend.get(c1), bend.get(c2)
+    if h1 is None:
+        h1 = -h2 if h2 is not None else 0.0
+    if h2 is None:
+        h2 = -bend[c1] if c1 in bend else 0.0
+    return h1, h2
 
 
 def oracle_ortho_weights(el, et, steps=32, rounding=25.0):
     """Blending weights of the orthogonal patterns, walking the edges pixel by pixel (no pseudo
     gather, no search table): from each pixel with a top edge walk left / right while the next
     pixel has a top edge and no crossing (left) edge separates them; the crossing edges at the
-    ends give the heights (code = above + 3 * below), areas by numerical integration, then corner
-    rounding. Left edges: the same on the transposed edge maps."""
+    ends give the heights (code = above + 3 * below, `pattern_heights`), areas by numerical
+    integration, then corner rounding. Left edges: the same on the transposed edge maps."""
     def one_dir(cont, cross):       # cont: edges along rows (top), cross: left edges
         h, w = cont.shape
         rr, gg = np.zeros((h, w)), np.zeros((h, w))
@@ -403,8 +444,7 @@ def oracle_ortho_weights(el, et, steps=32, rounding=25.0):
                 assert dl <= 2 * steps - 1 and dr <= 2 * steps   # within the search range
                 c1 = at(cross, xl, y - 1) + 3 * at(cross, xl, y)
                 c2 = at(cross, xr + 1, y - 1) + 3 * at(cross, xr + 1, y)
-                height = {1: 0.5, 3: -0.5}
-                r, g = area_numeric(dl, dr, height.get(c1, 0.0), height.get(c2, 0.0))
+                r, g = area_numeric(dl, dr, *pattern_heights(c1, c2))
                 near_l, near_r = float(dl <= dr), float(dr <= dl)
                 k = (1 - rounding / 100) / (near_l + near_r)
                 fr = 1 - k * near_l * at(cross, xl, y + 1) - k * near_r * at(cross, xr + 1, y + 1)
@@ -420,7 +460,7 @@ def oracle_ortho_weights(el, et, steps=32, rounding=25.0):
 @pytest.mark.parametrize("seed", [5, 6, 7])
 def test_orthogonal_weights_match_a_pixel_walking_oracle(seed):
     img = blocky(seed, h=24, w=28)
-    _, t = smaa(img, max_search_steps_diag=0)
+    _, t = smaa(img, max_search_steps_diag=0, area="exact")
     el, et = t["edge_left"].astype(bool), t["edge_top"].astype(bool)
     assert el.sum() > 20 and et.sum() > 20
     r, g, b, a = oracle_ortho_weights(el, et)
@@ -448,8 +488,8 @@ def numpy_neighbourhood_blend(rgb, R, G, B, A, linear, eps=1e-5):
         bot = src[Y1, X0] * (1 - tx) + src[Y1, X1] * tx
         return top * (1 - ty) + bot * ty
 
-    ax = np.pad(A[:, 1:], ((0, 0), (0, 1)))
-    ay = np.pad(G[1:, :], ((0, 1), (0, 0)))
+    ax = np.pad(A[:, 1:], ((0, 0), (0, 1)), mode="edge")   # clamp-to-edge: the last column
+    ay = np.pad(G[1:, :], ((0, 1), (0, 0)), mode="edge")   # reads its own a, the bottom row its g
     az, aw = B, R
     horiz = np.maximum(ax, az) > np.maximum(ay, aw)
     w1, w2 = np.where(horiz, ax, ay), np.where(horiz, az, aw)
