@@ -127,8 +127,9 @@ class Planner:
             missing.append(c)
         test.reference_tasks = ref_keys
         if missing:
+            # The metrics task reads every frame of its run: a run with a damaged file is re-made.
             need_run = [c for c in missing if self.store.done(Path(test.run_folders[c.label]),
-                                                              test.run_keys[c.label]) is None]
+                                                              test.run_keys[c.label], verify_files=True) is None]
             run_dep = ()
             if need_run:
                 rdeps = tuple(self._reference(spec, scene, t, w, h) for t in kept_t) \

@@ -1,0 +1,102 @@
+"""Tamper-evident store, complete keys and output hygiene (issue 11): an edited, corrupted or
+swapped artefact is reported and re-made, never reaching a table; a subset run leaves no table of
+an earlier, larger one; files get the user's umask."""
+import json
+import os
+import stat
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from study_fixtures import run_cli, summary, write_scenes
+
+
+@pytest.fixture
+def study(tmp_path, monkeypatch):
+    monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))
+    moving, still = write_scenes(tmp_path)
+    args = ["run", "--scenes", still, "--no-agreement", "--out", tmp_path / "out",
+            "--techniques", "Baseline=taa_baseline", "--techniques", "FXAA=fxaa"]
+    run_cli(args)
+    return tmp_path, args
+
+
+def _headline_psnr(out, label):
+    rows = (out / "tables" / "headline.csv").read_text().splitlines()
+    head = rows[0].split(",")
+    return [r.split(",")[head.index(label)] for r in rows[1:]]
+
+
+def test_edited_metrics_never_reach_a_table(study):
+    tmp, args = study
+    before = _headline_psnr(tmp / "out", "Baseline")
+    done = next(p for p in (tmp / "cache" / "metrics").rglob("done.json") if '"psnr"' in p.read_text()
+                and json.loads(p.read_text())["data"]["per_frame"].get("256"))
+    rec = json.loads(done.read_text())
+    rec["data"]["per_frame"]["256"]["psnr"] = 44.444          # key kept, value edited
+    done.write_text(json.dumps(rec))
+    err = run_cli(args).stderr
+    assert "content hash" in err and str(done.parent) in err
+    assert not any("44.444" in c for c in _headline_psnr(tmp / "out", "Baseline"))
+    assert _headline_psnr(tmp / "out", "Baseline") == before
+    assert summary(tmp / "out")["metrics_computed"] == 1
+
+
+def test_garbage_maps_and_a_swapped_frame_are_detected_and_re_made(study):
+    tmp, args = study
+    maps = next((tmp / "cache" / "metrics").rglob("maps_0256.exr"))
+    maps.write_bytes(b"garbage" * 100)
+    fxaa_frame = next(p for p in (tmp / "cache" / "runs").rglob("frame_0256.exr")
+                      if json.loads((p.parent / "done.json").read_text())["technique"] == "fxaa")
+    taa_frame = next(p for p in (tmp / "cache" / "runs").rglob("frame_0256.exr")
+                     if json.loads((p.parent / "done.json").read_text())["technique"] == "taa_baseline")
+    taa_frame.write_bytes(fxaa_frame.read_bytes())             # a valid EXR, the wrong technique's
+    err = run_cli(args).stderr
+    assert f"{maps}: expected SHA-256" in err and f"{taa_frame}: expected SHA-256" in err
+    s = summary(tmp / "out")
+    assert s["runs_computed"] == 1 and s["metrics_computed"] >= 1
+    run_cli(args)                                               # all intact again
+    s = summary(tmp / "out")
+    assert s["runs_computed"] == 0 and s["metrics_computed"] == 0
+
+
+def test_a_subset_run_leaves_no_table_of_the_first(tmp_path, monkeypatch):
+    monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))
+    moving, still = write_scenes(tmp_path)
+    base = ["run", "--no-agreement", "--out", tmp_path / "out", "--techniques", "noaa"]
+    run_cli(base + ["--scenes", f"{moving},{still}"])
+    assert (tmp_path / "out" / "tables" / "ghosting_tiny_moving.md").exists()
+    run_cli(base + ["--scenes", still])
+    tables = sorted(p.name for p in (tmp_path / "out" / "tables").iterdir())
+    assert not [t for t in tables if "tiny_moving" in t]
+    listed = json.loads((tmp_path / "out" / "manifest.json").read_text())["artefacts"]
+    on_disk = {str(p.relative_to(tmp_path / "out")) for f in ("tables", "images", "maps", "plots")
+               for p in (tmp_path / "out" / f).rglob("*") if p.is_file()}
+    assert on_disk == {k for k in listed if k.split("/")[0] in ("tables", "images", "maps", "plots")}
+
+
+def test_files_get_the_users_umask(tmp_path):
+    code = ("import os, sys; os.umask(0o022); sys.path.insert(0, 'tests');"
+            "from pathlib import Path; from study.store import Store, write_text_atomic; import numpy as np;"
+            f"root = Path({str(tmp_path)!r});"
+            "write_text_atomic(root / 'a.txt', 'x');"
+            "Store(root).save_folder(root / 'f', 'k', {'frame_0001.exr': np.zeros((2, 2, 3), np.float32)}, {})")
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=Path(__file__).parent.parent)
+    for p in (tmp_path / "a.txt", tmp_path / "f" / "frame_0001.exr", tmp_path / "f" / "done.json"):
+        assert stat.S_IMODE(os.stat(p).st_mode) == 0o644, p
+
+
+def test_a_technique_in_the_users_own_file_is_keyed_by_its_source(tmp_path, monkeypatch):
+    import importlib
+    from provenance import code_token
+    mod = tmp_path / "my_taa_mod.py"
+    mod.write_text("from taa_impl.baseline import BaselineTAA\nclass MyTAA(BaselineTAA):\n    name = 'my'\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    m = importlib.import_module("my_taa_mod")
+    k1 = code_token(m.MyTAA)
+    assert k1 != code_token(importlib.import_module("taa_impl.baseline").BaselineTAA)
+    mod.write_text(mod.read_text() + "# edited\n")
+    os.utime(mod, ns=(os.stat(mod).st_atime_ns, os.stat(mod).st_mtime_ns + 10**9))
+    assert code_token(m.MyTAA) != k1
