@@ -15,6 +15,8 @@ Choices the thesis leaves open, made here:
   "luminance" of a one-channel image is its value; the history is clamped to the averaged
   3x3/cross box (the thesis: clamp instead of clip); no sharpen.
 - Sharpening, as in the baseline, applies to the displayed output only (history is unsharpened).
+- The history is clipped into the thesis's box by the baseline's clip, with its tolerance
+  (TAAParams.clip_tol; kernels.clip_toward_centre), and the output is clamped at 0 likewise.
 
 Extensions: the resolve-stage switches of TAAParams (history_filter, tonemap_blend, reject_depth,
 reject_id) apply here exactly as in the baseline (the Sobel image's own TAA keeps its bilinear
