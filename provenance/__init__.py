@@ -8,12 +8,12 @@ A key is `task_key(kind, data, inputs, code)`:
   code    modules, classes or functions whose source produced it. `code_token` hashes the source
           files of those modules and, transitively, of every module they use that is not part of
           Python or an installed package (those are pinned in pyproject.toml), so the project's own
-          code and a user's technique file both take part, wherever the file lives.
+          code and a user's technique file both take part, wherever the file lives. A module that
+          reads other source files (shaders) lists them as `__code_files__` (globs relative to it).
 """
 from __future__ import annotations
 
 import hashlib
-import inspect
 import sys
 import sysconfig
 import types
@@ -82,11 +82,32 @@ def code_token(*objs) -> str:
             continue
         names.update(_closure(mod.__name__))
     h = hashlib.sha256()
-    for name in sorted(names):
-        path = Path(sys.modules[name].__file__).resolve()
-        h.update(name.encode())
+    for path in code_files(names):
+        h.update(path.name.encode())
         h.update(_file_digest(str(path), path.stat().st_mtime_ns).encode())
     return h.hexdigest()[:16]
+
+
+def code_files(names) -> list[Path]:
+    """The source files of the named modules, with the files they declare in `__code_files__`."""
+    out = []
+    for name in sorted(names):
+        mod = sys.modules[name]
+        path = Path(mod.__file__).resolve()
+        out.append(path)
+        for pattern in getattr(mod, "__code_files__", ()):
+            out += sorted(p.resolve() for p in path.parent.glob(pattern) if p.is_file())
+    return out
+
+
+def closure_files(*objs) -> list[Path]:
+    """Every file `code_token(*objs)` hashes."""
+    names: set[str] = set()
+    for obj in objs:
+        mod = _module_of(obj)
+        if mod is not None and _own_module(mod):
+            names.update(_closure(mod.__name__))
+    return code_files(names)
 
 
 def task_key(kind: str, data=None, inputs=(), code=()) -> str:
@@ -94,8 +115,4 @@ def task_key(kind: str, data=None, inputs=(), code=()) -> str:
     return f"{kind}-{tokenize(kind, data, sorted(inputs) if isinstance(inputs, set) else list(inputs), code_token(*code))[:20]}"
 
 
-def source_of(obj) -> str:
-    return inspect.getsource(obj)
-
-
-__all__ = ["task_key", "code_token", "tokenize"]
+__all__ = ["task_key", "code_token", "closure_files", "tokenize"]

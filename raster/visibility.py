@@ -25,6 +25,7 @@ from scenes import ResolvedScene
 gl_images.COMPONENT_COUNTS.setdefault(gl.GL_RG_INTEGER, 2)
 
 SHADER_DIR = os.path.join(os.path.dirname(__file__), "shaders")
+__code_files__ = ("shaders/*",)   # part of this module's code identity (provenance)
 
 
 class RasterError(RuntimeError):

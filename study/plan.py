@@ -22,6 +22,16 @@ from .config import TechniqueConfig
 from .protocols import Protocol, judged_steps
 
 
+# The code each task kind's key names (with, for a run, the technique's class): provenance hashes
+# these modules and every own module they use.
+CODE = {
+    "reference": ("references.cache", "references.render", "display"),
+    "run": ("study.protocols", "study.tasks"),
+    "metrics": ("study.metrics", "study.tasks", "display"),
+    "agreement": ("study.agreement",),
+}
+
+
 @dataclass
 class Task:
     key: str
@@ -75,7 +85,7 @@ class Planner:
         return task_key("reference", {"scene": scene.content_hash, "t": t, "res": (w, h),
                                       "camera": scene.camera(t, w, h).to_world.round(12).tolist(),
                                       "settings": self.ref_settings},
-                        code=["references.cache", "references.render", "display"])
+                        code=CODE["reference"])
 
     def _reference(self, spec: str, scene, t: int, w: int, h: int) -> str:
         key = self.reference_key(scene, t, w, h)
@@ -103,7 +113,7 @@ class Planner:
             # Display-space techniques see a display transform built from the reference.
             inputs = [ref_keys[t] for t in kept_t] if inp.display else []
             key = task_key("run", {"scene": scene.content_hash, "res": (w, h), "schedule": sched,
-                                   "technique": c.key_data()}, inputs, code=[type(tech), "study.protocols"])
+                                   "technique": c.key_data()}, inputs, code=[type(tech), *CODE["run"]])
             folder = self.store.folder(protocol.kind, scene.name, key)
             test.run_keys[c.label], test.run_folders[c.label] = key, str(folder)
             frames = sorted(test.frame_times[c.label])
@@ -117,7 +127,7 @@ class Planner:
             test.maps_for[c.label] = mf
             mkey = task_key("metrics", {"frames": test.frame_times[c.label], "maps": mf},
                             [key] + [ref_keys[t] for t in sorted(set(test.frame_times[c.label].values()))],
-                            code=["study.metrics", "study.tasks"])
+                            code=CODE["metrics"])
             mfolder = self.store.root / "metrics" / scene.name / mkey
             test.metrics_keys[c.label], test.metrics_folders[c.label] = mkey, str(mfolder)
             mrec = self.store.done(mfolder, mkey, verify_files=bool(mf))
@@ -166,7 +176,7 @@ class Planner:
             return
         ref = self.reference_key(scene, 0, w, h)
         key = task_key("agreement", {"scene": scene.content_hash, "res": (w, h), "samples": self.agreement_samples},
-                       [ref], code=["study.agreement"])
+                       [ref], code=CODE["agreement"])
         path = self.store.record_path("agreement", scene.name, key)
         self.plan.agreements[scene.name] = key
         data = self.store.load_record(path, key)
