@@ -1,8 +1,12 @@
 """Content-addressed cache of references as float32 OpenEXR.
 
-The key hashes everything that determines the image: the scene's content hash (description,
-meshes, textures), the frame, the camera state, the resolution, the convergence settings and the
-source of the shading and reference code. Files are written atomically (references/exr.py), so an
+The key (`reference_key`, the one place it is made) hashes everything that determines the image:
+the scene's content hash (description, meshes, textures), the frame, the camera state, the
+resolution, the convergence settings and the source of the shading, reference and display code
+(the stopping rule measures noise through the display transform). Each EXR carries the image,
+the linear standard error (`stderr.R/G/B`), the display-domain standard error
+(`display_stderr.R/G/B`, 1 = full scale) and the samples per pixel (`spp`), and its header the
+bound, seconds, mean/max spp, 99.9th percentile and max SE in LSB and the pixels over the bound. Files are written atomically (references/exr.py), so an
 interrupted render leaves nothing; a file that fails to read, lacks its key or holds NaN/Inf is
 reported, removed and rendered again.
 """
@@ -22,7 +26,7 @@ from .exr import read_exr, write_exr
 from .render import Reference, render_reference
 
 _CODE_FILES = ("shading/surface.py", "shading/frame.py", "references/render.py",
-               "references/mitsuba_scene.py")
+               "references/mitsuba_scene.py", "display/__init__.py")
 
 
 def default_cache_dir() -> Path:
@@ -37,18 +41,23 @@ def code_version() -> str:
     return h.hexdigest()[:12]
 
 
+def reference_key(scene: ResolvedScene, t: int, width: int, height: int, **settings) -> str:
+    """The content key of one reference: scene content, frame, camera, resolution, settings, code."""
+    cam = scene.camera(t, width, height)
+    blob = json.dumps({"scene": scene.content_hash, "frame": t, "width": width, "height": height,
+                       "camera": np.round(cam.to_world, 12).tolist(), "fov": cam.yfov_deg,
+                       "near": cam.near, "far": cam.far, "settings": settings,
+                       "code": code_version()}, sort_keys=True)
+    return hashlib.sha256(blob.encode()).hexdigest()[:24]
+
+
 class ReferenceCache:
     def __init__(self, root: Path | str | None = None, log=None):
         self.root = Path(root) if root is not None else default_cache_dir()
         self.log = log or (lambda msg: print(msg, file=sys.stderr))
 
     def key(self, scene: ResolvedScene, t: int, width: int, height: int, **settings) -> str:
-        cam = scene.camera(t, width, height)
-        blob = json.dumps({"scene": scene.content_hash, "frame": t, "width": width, "height": height,
-                           "camera": np.round(cam.to_world, 12).tolist(), "fov": cam.yfov_deg,
-                           "near": cam.near, "far": cam.far, "settings": settings,
-                           "code": code_version()}, sort_keys=True)
-        return hashlib.sha256(blob.encode()).hexdigest()[:24]
+        return reference_key(scene, t, width, height, **settings)
 
     def path(self, scene: ResolvedScene, key: str) -> Path:
         return self.root / "references" / scene.name / f"{key}.exr"
@@ -60,12 +69,14 @@ class ReferenceCache:
                 raise ValueError(f"header key {h.get('taa_key')!r} != {key!r}")
             img = np.stack([ch[c] for c in "RGB"], -1).astype(np.float32)
             se = np.stack([ch[f"stderr.{c}"] for c in "RGB"], -1).astype(np.float32)
-            if img.shape != shape or not (np.all(np.isfinite(img)) and np.all(np.isfinite(se))):
+            dse = np.stack([ch[f"display_stderr.{c}"] for c in "RGB"], -1).astype(np.float32)
+            spp = ch["spp"].astype(np.int32)
+            if img.shape != shape or not all(np.all(np.isfinite(x)) for x in (img, se, dse)):
                 raise ValueError("wrong shape or NaN/Inf pixels")
-            ref = Reference(img, se, int(h["taa_spp"]), int(h["taa_passes"]), float(h["taa_seconds"]),
-                            float(h["taa_noise_psnr_db"]), key)
-            ref._history = [tuple(x) for x in json.loads(h.get("taa_convergence", "[]"))]
-            return ref
+            history = [tuple(x) for x in json.loads(h.get("taa_convergence", "[]"))]
+            return Reference(img, se, int(h["taa_spp"]), int(h["taa_passes"]), float(h["taa_seconds"]),
+                             float(h["taa_noise_psnr_db"]), key, spp_map=spp, display_stderr=dse,
+                             bound_lsb=float(h["taa_bound_lsb"]), rounds=int(h["taa_rounds"]), _history=history)
         except Exception as exc:
             self.log(f"reference cache: {path} is corrupt ({exc}); removing it and rendering again")
             path.unlink(missing_ok=True)
@@ -74,26 +85,32 @@ class ReferenceCache:
     def _write(self, path: Path, ref: Reference, scene: ResolvedScene, t: int) -> None:
         header = {"taa_key": ref.key, "taa_scene": scene.name, "taa_scene_hash": scene.content_hash,
                   "taa_frame": int(t), "taa_spp": int(ref.spp), "taa_passes": int(ref.passes),
-                  "taa_seconds": float(ref.seconds), "taa_noise_psnr_db": float(ref.noise_psnr_db),
-                  "taa_code": code_version(),
-                  "taa_convergence": json.dumps([[int(a), round(float(b), 4), round(float(c), 3)]
-                                                 for a, b, c in ref.noise_history])}
-        chans = {"RGB": ref.image}
+                  "taa_rounds": int(ref.rounds), "taa_seconds": float(ref.seconds),
+                  "taa_noise_psnr_db": float(ref.noise_psnr_db), "taa_bound_lsb": float(ref.bound_lsb),
+                  "taa_spp_mean": float(ref.spp_mean), "taa_spp_max": int(ref.spp_max),
+                  "taa_se_p999_lsb": float(ref.se_p999_lsb), "taa_se_max_lsb": float(ref.se_max_lsb),
+                  "taa_over_bound": int(ref.over_bound), "taa_code": code_version(),
+                  "taa_convergence": json.dumps([[int(round(a)), round(float(b), 4), round(float(c), 3),
+                                                  round(float(d), 3)] for a, b, c, d in ref.noise_history])}
+        chans = {"RGB": ref.image, "spp": ref.spp_map}
         for k, c in enumerate("RGB"):
             chans[f"stderr.{c}"] = ref.stderr[..., k]
+            chans[f"display_stderr.{c}"] = ref.display_stderr[..., k]
         write_exr(path, chans, header)
 
-    def get(self, scene: ResolvedScene, t: int, width: int, height: int, *, target_noise_db=60.0,
-            spp_per_pass=64, progress=None) -> tuple[Reference, bool]:
-        """(reference, was_cached)."""
-        key = self.key(scene, t, width, height, target=target_noise_db, spp_per_pass=spp_per_pass)
+    def get(self, scene: ResolvedScene, t: int, width: int, height: int, *, se_bound_lsb=0.5,
+            target_noise_db=60.0, spp_per_pass=2, progress=None) -> tuple[Reference, bool]:
+        """(reference, was_cached): every pixel's display-domain SE <= se_bound_lsb (8-bit LSB)
+        and the mean noise >= target_noise_db, or the pixels that hit the sample cap counted."""
+        key = self.key(scene, t, width, height, bound_lsb=se_bound_lsb, target=target_noise_db,
+                       spp_per_pass=spp_per_pass)
         path = self.path(scene, key)
         if path.exists():
             ref = self._read(path, key, (height, width, 3))
             if ref is not None:
                 return ref, True
-        ref = render_reference(scene, t, width, height, target_noise_db=target_noise_db,
-                               spp_per_pass=spp_per_pass, progress=progress)
+        ref = render_reference(scene, t, width, height, se_bound_lsb=se_bound_lsb,
+                               target_noise_db=target_noise_db, spp_per_pass=spp_per_pass, progress=progress)
         ref.key = key
         self._write(path, ref, scene, t)
         return ref, False

@@ -1,17 +1,48 @@
-"""Converged references: independent passes until the reference's own noise is far below the
-errors it will judge.
+"""Converged references: every pixel's display-domain standard error below a bound (issue 9).
 
-Each pass is a Mitsuba render (multi-jittered samples, box filter, float32) with its own seed, so
-the passes are independent estimates of the pixel-area integral. Their spread gives the per-pixel
-standard error of the mean; we measure it on display images (the spec section 8 transform, key
-frozen from the first passes) and report it as a PSNR: noise_psnr = 10 log10(1 / mean(SE^2)).
-Passes are added until noise_psnr >= target, predicting the count from SE ~ 1/sqrt(passes).
+A reference pixel is the plain mean of all its samples, which fall in R = `min_passes`
+independent *replicates*. Replicate r starts as uniform Mitsuba pass r (multi-jittered sampler,
+`spp_per_pass` samples, box filter, float32 film) and, in a pixel that needs more, grows by fresh
+multi-jittered sets of the pixel's area; all replicates of a pixel always hold the same number
+of samples, so the mean of the replicate means is the plain mean. The spread of the R replicate
+means gives the standard error of the mean with R - 1 degrees of freedom whatever the sampling
+pattern inside a replicate (stratification makes each replicate better, never the estimate
+wrong): in linear HDR, and through the Jacobian of the display transform at the mean (spec
+section 8, key frozen from the first pass) in display units, with the channels' covariance.
+The bound is on the worst channel, 0.5 LSB of 8 bits by default.
+
+1. Pilot: the R uniform passes.
+2. Rounds: each pixel over the bound gets, in every replicate, one new set of a samples, a a
+   power of two (stratifies well) near what its estimated variance asks for,
+   1.2 m (se / bound)^2 - m for m samples per replicate now (SE ~ 1/sqrt(m) if nothing helps;
+   stratified edges converge faster, so it is a ceiling), and at most 3 m so a poor early
+   estimate is refreshed before much is spent. The rays come from the same Mitsuba sensor through
+   `shading.trace_visible` and `shading.shade` (the pilot's integrator and the raster's shading);
+   transport 'path' calls Mitsuba's path integrator per ray the same way (its other dimensions
+   from an independent sampler), so it gets the same treatment. In the first round every
+   neighbour of a pixel with any noise gets at least one more pilot's worth: an edge or corner
+   that the pilot's samples missed in a pixel looks noise-free there but not next door. Rounds stop when every pixel meets the
+   bound or holds `max_spp`; pixels still over it are counted (`over_bound`), never hidden. If the
+   mean noise (the secondary figure, 10 log10(1 / mean SE^2)) is still below `target_noise_db`,
+   the bound is tightened for more rounds.
+
+Why stopping on the data leaves the mean (almost) unbiased: each round's new samples are
+independent of everything drawn before and have mean mu, so for a pixel's sample sum S and count
+M (a stopping time: each decision uses only samples already drawn) Wald's identities give
+E[S - M mu] = 0 and E[(S - M mu)^2] = E[sum of the rounds' variances]. The plain mean's bias is
+E[(S - M mu)(1/M - E[1/M])], so by Cauchy-Schwarz
+    |E[S / M] - mu| <= sqrt(E[(S - M mu)^2]) sd(1/M)  ~  SE x (coefficient of variation of M),
+a fraction of the pixel's own standard error, which the bound keeps below 0.5 LSB. M varies
+little between seeds because the last decision is made from at least a quarter of the final
+count. tests/test_reference_adaptive.py measures the result against a uniform high-spp
+reference and the reported error against a second seed. Noise-free pixels (one colour over the
+whole pixel) stop after the pilot with SE exactly 0.
 """
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
@@ -23,6 +54,13 @@ from shading import frame_geometry, shade, trace_visible
 
 from .mitsuba_scene import SharedShadingIntegrator, path_integrator, path_scene, sensor
 
+LSB = 1.0 / 255.0
+_MARGIN = 1.2            # extra samples planned beyond the predicted count
+_GROWTH = 4              # at most this many times a pixel's samples after one round
+_FIRST = 16               # samples per replicate, at least, in a pixel's first set (128 with 32)
+_FIRST_MAX = 16          # and at most, as the pilot's own noise estimate is rough
+_CHUNK_RAYS = 1 << 22    # rays per Dr.Jit launch
+
 
 class ReferenceError(RuntimeError):
     pass
@@ -32,36 +70,189 @@ class ReferenceError(RuntimeError):
 class Reference:
     image: np.ndarray        # (H, W, 3) float32 linear HDR, mean over all samples
     stderr: np.ndarray       # (H, W, 3) float32 per-pixel standard error of the mean (linear)
-    spp: int
-    passes: int
+    spp: int                 # mean samples per pixel, rounded
+    passes: int              # uniform pilot passes
     seconds: float
-    noise_psnr_db: float     # display-domain noise of the mean, as PSNR
+    noise_psnr_db: float     # secondary: display-domain noise of the mean, as PSNR
     key: str = ""            # content hash the cache filed it under
+    spp_map: np.ndarray | None = None          # (H, W) samples per pixel
+    display_stderr: np.ndarray | None = None   # (H, W, 3) display-domain SE (1 = full scale)
+    bound_lsb: float = 0.5                     # the per-pixel bound it was rendered to
+    rounds: int = 0                            # adaptive rounds after the pilot
+    _history: list = field(default_factory=list, repr=False)
 
     @property
     def noise_history(self):
-        return getattr(self, "_history", [])
+        """(mean spp, seconds, noise PSNR dB, max SE LSB) after each pass or round."""
+        return self._history
+
+    @property
+    def se_lsb(self) -> np.ndarray:
+        """(H, W) display-domain SE of the worst channel, in 8-bit LSB."""
+        return self.display_stderr.max(axis=-1) / LSB
+
+    @property
+    def spp_mean(self) -> float:
+        return float(self.spp_map.mean())
+
+    @property
+    def spp_max(self) -> int:
+        return int(self.spp_map.max())
+
+    @property
+    def se_p999_lsb(self) -> float:
+        return float(np.percentile(self.se_lsb, 99.9))
+
+    @property
+    def se_max_lsb(self) -> float:
+        return float(self.se_lsb.max())
+
+    @property
+    def over_bound(self) -> int:
+        """Pixels whose SE is still above the bound (they hit the sample cap)."""
+        return int(np.sum(self.se_lsb > self.bound_lsb * (1 + 1e-5)))   # float32 storage slack
 
 
-def _welford(mean, m2, x, n):
-    """Running mean and sum of squared deviations after the n-th sample x (in place after the first)."""
-    if mean is None:
-        return x.copy(), np.zeros_like(x)
-    d = x - mean
-    mean += d / n
-    m2 += d * (x - mean)
-    return mean, m2
+def _cov_of_mean(reps: np.ndarray) -> np.ndarray:
+    """(K, 3, 3) covariance of the mean of K sets of R independent estimates reps (K, R, 3)."""
+    r = reps.shape[1]
+    dev = reps - reps.mean(axis=1, keepdims=True)
+    return np.einsum("kri,krj->kij", dev, dev) / ((r - 1) * r)
 
 
-def _display_noise_db(var_sum: np.ndarray, n: int) -> float:
-    mse = float(np.mean(var_sum / max(n - 1, 1) / n))
+class _Estimates:
+    """Per pixel: the pilot's mean and its covariance (from the spread of its passes), and for
+    the pixels that get more samples, R replicate sums (`slot` maps a pixel to its row). A pixel's
+    mean is the plain mean of all its samples; `cov` is the covariance of that mean."""
+
+    def __init__(self, passes: np.ndarray, spp_per_pass: int, replicates: int):
+        k, npix = passes.shape[:2]
+        self.r = replicates
+        self.mp = k * spp_per_pass                    # pilot samples per pixel
+        self.pilot_mean = passes.mean(axis=0, dtype=np.float64)
+        self.pilot_cov = np.zeros((npix, 3, 3))
+        self.varies = np.flatnonzero(np.any(passes.max(axis=0) != passes.min(axis=0), axis=-1))
+        self.pilot_cov[self.varies] = _cov_of_mean(passes[:, self.varies].transpose(1, 0, 2).astype(np.float64))
+        self.mean, self.cov = self.pilot_mean.copy(), self.pilot_cov.copy()
+        self.m = np.zeros(npix, np.int64)             # samples per replicate after the pilot
+        self.slot = np.full(npix, -1, np.int64)
+        self.sums = np.zeros((0, replicates, 3))
+
+    @property
+    def spp(self) -> np.ndarray:
+        return self.mp + self.r * self.m
+
+    def add(self, pix: np.ndarray, a: int, sums: np.ndarray) -> None:
+        """sums (K, R, 3): each replicate's sum over its a new samples, for pixels pix."""
+        new = pix[self.slot[pix] < 0]
+        if len(new):
+            self.slot[new] = len(self.sums) + np.arange(len(new))
+            self.sums = np.concatenate([self.sums, np.zeros((len(new), self.r, 3))])
+        rows = self.slot[pix]
+        self.sums[rows] += sums
+        self.m[pix] += a
+        reps = self.sums[rows] / self.m[pix, None, None]
+        ma = (self.r * self.m[pix]).astype(np.float64)
+        w = (ma / (self.mp + ma))[:, None]           # the replicates' share of the samples
+        self.mean[pix] = (1 - w) * self.pilot_mean[pix] + w * reps.mean(axis=1)
+        self.cov[pix] = ((1 - w) ** 2)[:, :, None] * self.pilot_cov[pix] + (w ** 2)[:, :, None] * _cov_of_mean(reps)
+
+    def linear_se(self) -> np.ndarray:
+        return np.sqrt(np.maximum(np.diagonal(self.cov, axis1=1, axis2=2), 0.0))
+
+
+def _display_se(disp: DisplayTransform, mean: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """SE of the display value of the mean, per channel: sqrt(J cov J^T), J at the mean."""
+    base = disp.encode(mean)
+    jac = np.empty((len(mean), 3, 3))
+    for k in range(3):   # forward differences: the tone map is clamped at 0, so stay on its right
+        h = 1e-7 + 1e-5 * np.abs(mean[:, k])
+        x = mean.copy()
+        x[:, k] += h
+        jac[:, :, k] = (disp.encode(x) - base) / h[:, None]
+    var = np.einsum("pck,pkl,pcl->pc", jac, cov, jac)
+    return np.sqrt(np.maximum(var, 0.0))
+
+
+def _strata(p: int) -> tuple[int, int]:
+    sx = max(d for d in range(1, math.isqrt(p) + 1) if p % d == 0)
+    return sx, p // sx
+
+
+class _PixelTracer:
+    """Sums of sets of rays through given pixels, from the reference's own sensor and shading
+    (direct transports) or Mitsuba's path integrator (transport 'path'). A set of a samples is
+    a jittered sx x sy grid over the pixel (one uniform sample per cell), so every sample is
+    uniform over the pixel's area and the set is stratified."""
+
+    def __init__(self, scene: ResolvedScene, cam, path: bool, mscene, integ, geo):
+        self.w, self.h = cam.width, cam.height
+        self.sens = sensor(cam, 1)
+        self.eye = cam.position
+        self.path, self.mscene, self.integ, self.geo = path, mscene, integ, geo
+        self.background = mi.Color3f(*scene.desc.background)
+        self.sampler = mi.load_dict({"type": "independent"}) if path else None
+
+    def sets(self, pix: np.ndarray, r: int, a: int, seed: int) -> np.ndarray:
+        """(len(pix), r, 3): for each pixel, r independent sets of a samples, each summed."""
+        n = len(pix) * r * a
+        # opaque: literal sizes and seeds would be compiled into the kernel, one kernel per call
+        sx, sy = (dr.opaque(mi.UInt32, x) for x in _strata(a))
+        a_, ra = dr.opaque(mi.UInt32, a), dr.opaque(mi.UInt32, r * a)
+        idx = dr.arange(mi.UInt32, n)
+        j = idx % a_
+        p = dr.gather(mi.UInt32, mi.UInt32(pix.astype(np.uint32)), idx // ra)
+        # PCG32 streams that differ only in a nearby sequence number are correlated: hash the
+        # state from (seed, index) with TEA, as Mitsuba's independent sampler does
+        s0, s1 = mi.sample_tea_32(dr.opaque(mi.UInt32, int(seed) & 0xFFFFFFFF), idx)
+        rng = mi.PCG32(size=n, initstate=mi.UInt64(s0) | (mi.UInt64(s1) << 32), initseq=mi.UInt64(idx))
+        u = (mi.Float(j % sx) + rng.next_float32()) / mi.Float(sx)
+        v = (mi.Float(j // sx) + rng.next_float32()) / mi.Float(sy)
+        pos = mi.Point2f((mi.Float(p % self.w) + u) / self.w, (mi.Float(p // self.w) + v) / self.h)
+        if not self.path:
+            ray, _ = self.sens.sample_ray(0.0, 0.5, pos, mi.Point2f(0.5, 0.5))
+            surf, _ = trace_visible(self.geo, mi.Ray3f(ray))
+            col = shade(self.geo, surf, self.eye)
+        else:
+            self.sampler.seed(int(seed) & 0xFFFFFFFF, n)
+            ray, _ = self.sens.sample_ray_differential(0.0, self.sampler.next_1d(), pos, mi.Point2f(0.5, 0.5))
+            col, valid, _ = self.integ.sample(self.mscene, self.sampler, ray, None, True)
+            # as the pilot's alpha film composite: misses (alpha 0) show the background
+            col = col + dr.select(valid, 0.0, 1.0) * self.background
+        zero = dr.zeros(mi.Float, n)      # broadcast constant channels before summing blocks
+        chans = [col[k] + zero for k in range(3)]
+        dr.eval(chans)                    # one tracing kernel for the three channels, not one each
+        sums = [dr.block_sum(mi.Float64(c), a) for c in chans]   # float64: sets of up to 2^16
+        dr.eval(sums)
+        return np.stack([np.asarray(c, np.float64) for c in sums], -1).reshape(len(pix), r, 3)
+
+
+def _dilate(mask: np.ndarray) -> np.ndarray:
+    out = mask.copy()
+    out[1:] |= mask[:-1]
+    out[:-1] |= mask[1:]
+    col = out.copy()
+    out[:, 1:] |= col[:, :-1]
+    out[:, :-1] |= col[:, 1:]
+    return out
+
+
+def _noise_db(dse: np.ndarray) -> float:
+    mse = float(np.mean(dse ** 2))
     return float("inf") if mse == 0 else 10 * math.log10(1.0 / mse)
 
 
 def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
-                     target_noise_db: float = 60.0, spp_per_pass: int = 64, min_passes: int = 8,
-                     max_spp: int = 1 << 16, progress: Callable[[int, float], None] | None = None
-                     ) -> Reference:
+                     se_bound_lsb: float = 0.5, target_noise_db: float = 60.0, spp_per_pass: int = 4,
+                     min_passes: int = 4, replicates: int = 32, max_spp: int = 1 << 16, seed: int = 0,
+                     progress: Callable[[int, float], None] | None = None) -> Reference:
+    """Reference of frame t: `min_passes` pilot passes of `spp_per_pass`, then rounds of
+    `replicates` independent sets per pixel that needs them (see the module docstring)."""
+    if min_passes < 2 or replicates < 2:
+        raise ReferenceError(f"min_passes and replicates must be >= 2 to estimate the noise, "
+                             f"got {min_passes}, {replicates}")
+    if se_bound_lsb <= 0 or spp_per_pass < 1:
+        raise ReferenceError(f"se_bound_lsb must be > 0 and spp_per_pass >= 1, got {se_bound_lsb}, {spp_per_pass}")
     cam = scene.camera(t, width, height)
     path = scene.desc.transport == "path"
     if path and any(a is not None for a in scene.alphas):
@@ -70,6 +261,7 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
         raise ReferenceError(f"scene {scene.name!r}: transport 'path' does not support alpha cut-outs "
                              "(Mitsuba's path tracer treats masked surfaces as opaque to shadow rays); "
                              "use direct_shadows")
+    geo = None
     if path:
         mscene, integ = path_scene(scene, t), path_integrator(scene.desc.path_max_depth)
     else:
@@ -77,39 +269,92 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
         mscene, integ = geo.mitsuba, SharedShadingIntegrator(geo, cam.position)
     sens = sensor(cam, spp_per_pass, alpha=path)
     background = np.asarray(scene.desc.background, np.float64)
+    npix, r = width * height, replicates
     start = time.perf_counter()
-    mean = m2 = None          # Welford in the linear domain (stderr) ...
-    dmean = dm2 = None        # ... and in the display domain (noise target)
+    history = []
+
+    def record(est, dse):
+        db = _noise_db(dse)
+        spp = float(est.spp.mean())
+        history.append((spp, time.perf_counter() - start, db, float(dse.max() / LSB)))
+        if progress:
+            progress(int(round(spp)), db)
+
+    passes = np.empty((min_passes, npix, 3), np.float32)
     disp = None
-    n, noise_db, history = 0, 0.0, []
-    max_passes = max(min_passes, max_spp // spp_per_pass)
-    wanted = min_passes
-    while n < wanted:
-        img = np.asarray(mi.render(mscene, sensor=sens, integrator=integ, seed=n,
+    for n in range(min_passes):
+        img = np.asarray(mi.render(mscene, sensor=sens, integrator=integ, seed=((seed << 16) + n) & 0xFFFFFFFF,
                                    spp=spp_per_pass), np.float64)
         if path:   # rgba: composite the fraction of samples that missed over the background
             img = img[..., :3] + (1.0 - img[..., 3:4]) * background
         if not np.all(np.isfinite(img)):
             raise ReferenceError(f"scene {scene.name!r} frame {t}: pass {n} produced NaN/Inf")
-        n += 1
-        mean, m2 = _welford(mean, m2, img, n)
-        if disp is None:    # the key of one 64-spp pass is the converged key to many digits
+        if disp is None:    # the key of one pass is the converged key to a few digits
             disp = DisplayTransform.from_reference(img)
-        dmean, dm2 = _welford(dmean, dm2, disp.encode(img), n)
-        if n >= 2:
-            noise_db = _display_noise_db(dm2, n)
-            history.append((n * spp_per_pass, time.perf_counter() - start, noise_db))
-        if progress:
-            progress(n * spp_per_pass, noise_db)
-        if n >= wanted and n >= min_passes and noise_db < target_noise_db and n < max_passes:
-            # SE^2 ~ 1/passes: predict how many passes reach the target, plus 10 % margin.
-            need = math.ceil(n * 10 ** ((target_noise_db - noise_db) / 10) * 1.1)
-            wanted = min(max(need, n + 1), max_passes)
-    se = np.sqrt(m2 / max(n - 1, 1) / n)
-    ref = Reference(mean.astype(np.float32), se.astype(np.float32), n * spp_per_pass, n,
-                    time.perf_counter() - start, noise_db)
-    ref._history = history
-    return ref
+        passes[n] = img.reshape(-1, 3)
+        if progress and n < min_passes - 1:
+            progress((n + 1) * spp_per_pass, float("nan"))
+    est = _Estimates(passes, spp_per_pass, r)
+    del passes
+    dse = np.zeros((npix, 3))
+    dse[est.varies] = _display_se(disp, est.mean[est.varies], est.cov[est.varies])
+    record(est, dse)
+
+    tracer = _PixelTracer(scene, cam, path, mscene, integ, geo)
+    cap = max((max_spp - est.mp) // r, 1)         # samples per replicate
+    bound = se_bound_lsb * LSB
+    target_mse = 10 ** (-target_noise_db / 10)
+    rounds = tightened = 0
+    while True:
+        worst = dse.max(axis=-1)
+        over = (worst > bound) & (est.m < cap)
+        spp = est.spp
+        want = (np.ceil(spp * (worst / bound) ** 2 * _MARGIN) - spp) / r      # per replicate
+        if rounds == 0:
+            # Every pixel with any variance in the pilot, and its neighbours (an edge the
+            # pilot missed in one pixel shows next door; linear variance, as the display
+            # clip can hide it), gets its replicates.
+            noisy = np.zeros(npix, bool)
+            noisy[est.varies] = True
+            over |= _dilate(noisy.reshape(height, width)).ravel()
+            want = np.maximum(want, _FIRST)
+        if not over.any():
+            mse = float(np.mean(dse ** 2))
+            improvable = np.any((worst > 0) & (est.m < cap))
+            if mse <= target_mse or not improvable or tightened >= 20:
+                break
+            # The mean-noise target binds: tighten the per-pixel bound by what it misses.
+            bound *= max(math.sqrt(target_mse / mse), 0.25)
+            tightened += 1
+            continue
+        pix = np.flatnonzero(over)
+        m = est.m[pix]
+        # a power of two (a square-ish jittered grid); the first set at most
+        # _FIRST_MAX, later ones at most 3 m; never past the cap
+        most = np.where(m == 0, _FIRST_MAX, 2 ** np.floor(np.log2(np.maximum((_GROWTH - 1) * m, 1))))
+        add = np.minimum(2 ** np.ceil(np.log2(np.maximum(want[pix], 1))), most)
+        add = np.minimum(add, cap - m).astype(np.int64)
+        rng = np.random.default_rng([seed, 9, rounds])
+        for a in np.unique(add):          # one set size per group of pixels
+            group = pix[add == a]
+            per_chunk = max(1, _CHUNK_RAYS // int(a * r))
+            for k in range(0, len(group), per_chunk):
+                g = group[k:k + per_chunk]
+                sums = tracer.sets(g, r, int(a), seed=rng.integers(1 << 32))
+                if not np.all(np.isfinite(sums)):
+                    raise ReferenceError(f"scene {scene.name!r} frame {t}: round {rounds} produced NaN/Inf")
+                est.add(g, int(a), sums)
+        dse[pix] = _display_se(disp, est.mean[pix], est.cov[pix])
+        rounds += 1
+        record(est, dse)
+
+    spp_map = est.spp.reshape(height, width)
+    lin_se = np.sqrt(np.maximum(np.diagonal(est.cov, axis1=1, axis2=2), 0.0))
+    return Reference(est.mean.reshape(height, width, 3).astype(np.float32),
+                     lin_se.reshape(height, width, 3).astype(np.float32),
+                     int(round(spp_map.mean())), min_passes, time.perf_counter() - start, _noise_db(dse),
+                     spp_map=spp_map.astype(np.int32), display_stderr=dse.reshape(height, width, 3).astype(np.float32),
+                     bound_lsb=float(se_bound_lsb), rounds=rounds, _history=history)
 
 
 def trace_pixel_centres(scene: ResolvedScene, t: int, width: int, height: int):

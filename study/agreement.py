@@ -8,6 +8,10 @@
   centre sees the same object and triangle in both renderers (away from geometric and shadow edges).
 - single sample: the visibility framebuffer has one sample per pixel, and the raster's pixel
   centres reproduce single rays (fraction of all pixels matching to 1e-4).
+- reference bound: every reference pixel's display-domain standard error within the bound it
+  was rendered to (0.5 LSB by default); the bound, the 99.9th percentile and max SE are reported.
+- something to see: at least one pixel centre hits an object in both renderers. A frame of
+  background only (a camera looking away, or a broken camera) agrees perfectly and proves nothing.
 """
 from __future__ import annotations
 
@@ -44,6 +48,12 @@ class Agreement:
     raster_seconds: float
     single_sample: bool
     transport: str = "direct"
+    reference_se_bound_lsb: float = 0.5
+    reference_se_p999_lsb: float = 0.0
+    reference_se_max_lsb: float = 0.0
+    reference_over_bound: int = 0
+    reference_spp_max: int = 0
+    visible_fraction: float = 1.0     # pixel centres that hit an object, in both renderers
 
     def meets_targets(self) -> dict[str, bool]:
         # A 'path' reference is a realism study: its gap to the direct-lit raster is reported only.
@@ -52,7 +62,9 @@ class Agreement:
                 "interior_max_abs_err": reported_only or
                 self.interior_max_abs_err <= TARGETS["interior_max_abs_err"],
                 "reference_noise_psnr_db": self.reference_noise_psnr_db >= TARGETS["reference_noise_psnr_db"],
-                "single_sample": self.single_sample}
+                "reference_bound": self.reference_over_bound == 0,
+                "single_sample": self.single_sample,
+                "objects_visible": self.visible_fraction > 0}
 
     def as_dict(self) -> dict:
         d = {k: (v.item() if hasattr(v, "item") else v) for k, v in asdict(self).items()}
@@ -72,7 +84,7 @@ def _interior(ids: np.ndarray) -> np.ndarray:
 
 def check_agreement(scene: ResolvedScene, width: int, height: int, *, frame: int = 0, samples: int = 256,
                     cache: ReferenceCache | None = None, target_noise_db: float = 60.0,
-                    progress: bool = True) -> Agreement:
+                    se_bound_lsb: float = 0.5, progress: bool = True) -> Agreement:
     import time
     cache = cache or ReferenceCache()
     raster = Rasterizer(scene, width, height)
@@ -91,7 +103,7 @@ def check_agreement(scene: ResolvedScene, width: int, height: int, *, frame: int
 
     bar = tqdm(desc=f"{scene.name}: reference", unit="spp", disable=not progress, leave=False, mininterval=1.0)
     ref, cached = cache.get(scene, frame, width, height, target_noise_db=target_noise_db,
-                            progress=lambda spp, db: (bar.update(spp - bar.n), bar.set_postfix(noise_db=f"{db:.1f}")))
+                            se_bound_lsb=se_bound_lsb, progress=lambda spp, db: (bar.update(spp - bar.n), bar.set_postfix(noise_db=f"{db:.1f}")))
     bar.close()
 
     disp = DisplayTransform.from_reference(ref.image)
@@ -107,7 +119,11 @@ def check_agreement(scene: ResolvedScene, width: int, height: int, *, frame: int
               & (mi_ids == centre["object_id"]) & (mi_prims == centre["prim_id"]))
     interior_err = float(diff[inside].max()) if inside.any() else float("nan")
     match = float(np.mean(diff <= 1e-4))
+    visible = float(np.mean((mi_ids > 0) & (centre["object_id"] > 0)))
     return Agreement(scene.name, frame, width, height, agreement, rel_mse, interior_err, int(inside.sum()),
                      match, ref.noise_psnr_db, ref.spp, ref.seconds, cached, samples, raster_s,
                      single_sample=bool(spp_gl == 1 and (match >= 0.99 or scene.desc.transport == "path")),
-                     transport=scene.desc.transport)
+                     transport=scene.desc.transport, reference_se_bound_lsb=ref.bound_lsb,
+                     reference_se_p999_lsb=ref.se_p999_lsb, reference_se_max_lsb=ref.se_max_lsb,
+                     reference_over_bound=ref.over_bound, reference_spp_max=ref.spp_max,
+                     visible_fraction=visible)
