@@ -5,19 +5,31 @@ relative MSE in linear HDR so tone mapping cannot hide errors.
   PSNR             10 log10(255^2 / MSE), +inf when MSE = 0
   SNR              10 log10(sum ref^2 / sum (ref - x)^2)  (MATLAB psnr's second output)
   SSIM             Wang et al.: Gaussian window sigma 1.5, K1 0.01, K2 0.03, population covariance,
-                   data_range 255 (scikit-image, pinned: its border handling changed over versions)
-  FLIP LDR / HDR   flip-evaluator, on the display images and on the linear ones
+                   data_range 255, per channel, as scikit-image 0.26.0 computes it (study.ssim)
+  SSIM volume      MATLAB's ssim on the H x W x 3 array as one volume, the thesis's form (study.ssim);
+                   a scalar, for comparison with the thesis's SSIM column only
+  FLIP LDR / HDR   as flip-evaluator 1.7 computes them, on the display images and on the linear ones
+                   (study.flip)
   relMSE (HDR)     mean((x - r)^2 / (r^2 + 0.01)) in linear HDR
+
+SSIM and FLIP run in Dr.Jit (study.jit_filter); `impl="library"` computes them with scikit-image and
+flip-evaluator instead, the oracles the Dr.Jit versions are tested against.
 """
 from __future__ import annotations
 
 import math
 
 import numpy as np
-from skimage.metrics import structural_similarity
 
-METRICS = ("mse", "rmsd", "psnr", "snr", "ssim", "flip_ldr", "flip_hdr", "relmse_hdr")
-HIGHER_IS_BETTER = {"psnr": True, "snr": True, "ssim": True}
+METRICS = ("mse", "rmsd", "psnr", "snr", "ssim", "ssim_volume", "flip_ldr", "flip_hdr", "relmse_hdr")
+HIGHER_IS_BETTER = {"psnr": True, "snr": True, "ssim": True, "ssim_volume": True}
+IMPLS = ("drjit", "library")
+
+
+def _impl(impl: str) -> str:
+    if impl not in IMPLS:
+        raise ValueError(f"metric implementation must be one of {IMPLS}, not {impl!r}")
+    return impl
 
 
 def better(metric: str, a: float, b: float) -> bool:
@@ -40,19 +52,32 @@ def snr(ref8: np.ndarray, x8: np.ndarray) -> float:
     return math.inf if noise == 0 else 10 * math.log10(float(np.sum(r * r)) / noise)
 
 
-def ssim(ref8: np.ndarray, x8: np.ndarray) -> tuple[float, np.ndarray]:
+def ssim(ref8: np.ndarray, x8: np.ndarray, impl: str = "drjit") -> tuple[float, np.ndarray]:
     """(mean SSIM, per-pixel SSIM map averaged over channels)."""
-    mean, smap = structural_similarity(ref8, x8, gaussian_weights=True, sigma=1.5,
-                                       use_sample_covariance=False, data_range=255, channel_axis=-1,
-                                       K1=0.01, K2=0.03, full=True)
-    return float(mean), smap.mean(axis=-1)
+    if _impl(impl) == "library":
+        from skimage.metrics import structural_similarity
+        mean, smap = structural_similarity(ref8, x8, gaussian_weights=True, sigma=1.5,
+                                           use_sample_covariance=False, data_range=255, channel_axis=-1,
+                                           K1=0.01, K2=0.03, full=True)
+        return float(mean), smap.mean(axis=-1)
+    from . import ssim as S
+    return S.ssim(ref8, x8)
 
 
-def flip(ref: np.ndarray, x: np.ndarray, mode: str) -> tuple[float, np.ndarray]:
-    import flip_evaluator
-    emap, mean, _ = flip_evaluator.evaluate(np.ascontiguousarray(ref, np.float32),
-                                            np.ascontiguousarray(x, np.float32), mode, applyMagma=False)
-    return float(mean), np.asarray(emap, np.float32).reshape(ref.shape[:2])
+def ssim_volume(ref8: np.ndarray, x8: np.ndarray) -> float:
+    """MATLAB's SSIM of the two H x W x 3 arrays as volumes (the thesis's SSIM)."""
+    from . import ssim as S
+    return S.ssim_volume(ref8, x8)
+
+
+def flip(ref: np.ndarray, x: np.ndarray, mode: str, impl: str = "drjit") -> tuple[float, np.ndarray]:
+    if _impl(impl) == "library":
+        import flip_evaluator
+        emap, mean, _ = flip_evaluator.evaluate(np.ascontiguousarray(ref, np.float32),
+                                                np.ascontiguousarray(x, np.float32), mode, applyMagma=False)
+        return float(mean), np.asarray(emap, np.float32).reshape(ref.shape[:2])
+    from . import flip as F
+    return F.flip(ref, x, mode)
 
 
 def relmse(ref: np.ndarray, x: np.ndarray) -> float:
@@ -61,22 +86,29 @@ def relmse(ref: np.ndarray, x: np.ndarray) -> float:
 
 
 def all_metrics(ref_lin: np.ndarray, ref_disp: np.ndarray, ref8: np.ndarray,
-                x_lin: np.ndarray | None, x_disp: np.ndarray, x8: np.ndarray) -> tuple[dict, dict]:
+                x_lin: np.ndarray | None, x_disp: np.ndarray, x8: np.ndarray,
+                impl: str = "drjit", want_maps: bool = True) -> tuple[dict, dict]:
     """Scalar metrics and maps for one image. `x_lin` is None for techniques whose output is a
-    display image (FXAA): their HDR metrics are not defined and are reported as None."""
+    display image (FXAA): their HDR metrics are not defined and are reported as None.
+    `want_maps=False` returns no maps (the scalars need them anyway; this only saves keeping them)."""
     for name, a in (("reference", ref_lin), ("technique", x_lin), ("technique display", x_disp)):
         if a is not None and not np.all(np.isfinite(a)):
             raise ValueError(f"{name} image holds {int(np.count_nonzero(~np.isfinite(a)))} NaN/Inf values")
     m = mse(ref8, x8)
-    s, smap = ssim(ref8, x8)
-    fl, fmap = flip(ref_disp, x_disp, "LDR")
+    if _impl(impl) == "drjit":
+        from . import ssim as S
+        s, smap, s_vol = S.ssim_both(ref8, x8)
+    else:
+        s, smap = ssim(ref8, x8, impl)
+        s_vol = ssim_volume(ref8, x8)
+    fl, fmap = flip(ref_disp, x_disp, "LDR", impl)
     out = {"mse": m, "rmsd": math.sqrt(m), "psnr": psnr_from_mse(m), "snr": snr(ref8, x8), "ssim": s,
-           "flip_ldr": fl, "flip_hdr": None, "relmse_hdr": None}
+           "ssim_volume": s_vol, "flip_ldr": fl, "flip_hdr": None, "relmse_hdr": None}
     maps = {"ssim": smap, "flip_ldr": fmap}
     if x_lin is not None:
-        out["flip_hdr"], maps["flip_hdr"] = flip(np.maximum(ref_lin, 0), np.maximum(x_lin, 0), "HDR")
+        out["flip_hdr"], maps["flip_hdr"] = flip(np.maximum(ref_lin, 0), np.maximum(x_lin, 0), "HDR", impl)
         out["relmse_hdr"] = relmse(ref_lin, x_lin)
-    return out, maps
+    return out, (maps if want_maps else {})
 
 
 def temporal_instability(ref_seq: list[np.ndarray], x_seq: list[np.ndarray]) -> float:
@@ -93,10 +125,13 @@ def temporal_instability(ref_seq: list[np.ndarray], x_seq: list[np.ndarray]) -> 
     return math.sqrt(acc / n)
 
 
-def judge_run(images: dict, output_space: str, refs: dict, displays: dict, ref8: dict, kept: list[int]):
+def judge_run(images: dict, output_space: str, refs: dict, displays: dict, ref8: dict, kept: list[int],
+              maps_for=None, impl: str = "drjit"):
     """Metrics of every kept frame of one technique's run against its references, the temporal
-    instability of the sequence, and the maps of the last frame."""
+    instability of the sequence, and maps: those of the last kept frame (the default), or, when
+    `maps_for` is given, a dict frame -> maps for the kept frames in it (a table or figure's)."""
     per_frame, seq8, maps = {}, [], {}
+    wanted = {kept[-1]} if maps_for is None else set(maps_for)
     for t in kept:
         x, disp = images[t], displays[t]
         if output_space == "display":
@@ -105,6 +140,10 @@ def judge_run(images: dict, output_space: str, refs: dict, displays: dict, ref8:
             x_lin, x_disp = x, disp.encode(x)
         x8 = np.round(x_disp * 255).astype(np.uint8)
         seq8.append(x8)
-        per_frame[t], maps = all_metrics(refs[t].image, disp.encode(refs[t].image), ref8[t], x_lin, x_disp, x8)
+        per_frame[t], m = all_metrics(refs[t].image, disp.encode(refs[t].image), ref8[t], x_lin, x_disp, x8,
+                                      impl=impl, want_maps=t in wanted)
+        if t in wanted:
+            maps[t] = m
     temporal = temporal_instability([ref8[t] for t in kept], seq8) if len(kept) > 1 else math.nan
-    return {"per_frame": {str(t): v for t, v in per_frame.items()}, "temporal": temporal}, maps
+    result = {"per_frame": {str(t): v for t, v in per_frame.items()}, "temporal": temporal}
+    return result, (maps.get(kept[-1], {}) if maps_for is None else maps)

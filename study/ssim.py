@@ -115,8 +115,8 @@ def ssim_both(ref8: np.ndarray, x8: np.ndarray, sigma: float = SIGMA, volume: bo
             out.append(tot)
         return out
 
-    res = jf.vpass(lay, hs, [jf.Filter(i, filters[i].weights, filters[i].border) for i in range(len(filters))],
-                   finish, prec)
+    vs = jf.vpass(lay, hs, [jf.Filter(i, f.weights, f.border) for i, f in enumerate(filters)], prec)
+    res = finish(vs)
     smap = lay.download(res[0])
     mean = float(smap[rc:h - rc, rc:w - rc].mean(dtype=np.float64))
     vol = float(lay.download(res[1]).mean(dtype=np.float64) / 3.0) if volume else None
