@@ -43,7 +43,9 @@ SMAA column uses) evaluates them as the reference's area texture holds them -- o
 squared distances interpolated in sqrt(distance), diagonal areas by 30 x 30 point sampling, both
 as 8-bit bytes (computed here; they equal the reference's AreaTex.h byte for byte) -- so the
 weights are the reference shader's. 'exact' integrates the same revectorised lines exactly at the
-actual distances (closer to the paper's definition; up to ~0.08 apart at non-square distances).
+actual distances (closer to the paper's definition). The two differ by up to 0.079 in an
+orthogonal weight (at non-square distances; < 1/255 at squares) and 0.018 in a diagonal one; on
+the quick static test the column moves by at most 0.7 dB (pipe: 38.55 reference, 39.23 exact).
 
 Choices and deviations (see also smaa_area's docstring):
 - Input: the display image, `display.encode(colour)` (tone map + sRGB, floats in [0, 1]); the output
