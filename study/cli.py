@@ -224,15 +224,19 @@ def _execution_options(f):
     return f
 
 
-def _techniques(tech_list):
-    from study.config import DEFAULT_TECHNIQUES, TechniqueConfig, available
+def _techniques(tech_list, default=()):
+    from study.config import TechniqueConfig, available
     try:
-        configs = [TechniqueConfig.parse(t) for t in tech_list] if tech_list else list(DEFAULT_TECHNIQUES)
+        configs = [TechniqueConfig.parse(t) for t in tech_list] if tech_list else list(default)
     except ValueError as exc:
         _fail(str(exc))
     configs, missing = available(configs)
-    if tech_list and missing:
-        _fail(f"unknown technique(s): {', '.join(c.name for c in missing)}")
+    if missing:
+        from study.config import resolve_technique
+        try:
+            resolve_technique(missing[0].name)
+        except ValueError as exc:
+            _fail(str(exc))
     labels = [c.label for c in configs]
     if len(set(labels)) != len(labels):
         _fail(f"technique labels must be unique, got {labels}")
@@ -242,6 +246,15 @@ def _techniques(tech_list):
     except (TypeError, ValueError, KeyError) as exc:
         _fail(f"bad technique parameters: {exc}")
     return configs
+
+
+def _profile(study_file, profile):
+    from study.config import get_profile
+    from study.studyfile import StudyFileError
+    try:
+        return get_profile(study_file or profile)
+    except StudyFileError as exc:
+        _fail(str(exc))
 
 
 def _load_scenes(names):
@@ -254,11 +267,12 @@ def _load_scenes(names):
 
 
 def run_study(profile, names, configs, out_dir, no_agreement, executor, sweep=True):
+    """`profile`: a Profile (study file). Returns the output folder."""
     """The study end to end: plan and execute its tasks, then write its report. Returns the folder."""
     import time as _time
     from pathlib import Path
 
-    from study.config import SPARSE_SWEEP, THESIS_HISTORY
+    from study.config import SPARSE_SWEEP, thesis_roles
     from study.report import Report
     from study.run import Study
     from study.store import Store
@@ -273,8 +287,8 @@ def run_study(profile, names, configs, out_dir, no_agreement, executor, sweep=Tr
         res = study.run(names, configs, agreement=not no_agreement, sweep=sweep_cfg)
     except TaskError as exc:
         _fail(str(exc))
-    out = Path(out_dir or f"out/{study.profile.name}")
-    report = Report(out, Store(study.cache.root))
+    out = Path(out_dir or study.profile.out or f"out/{study.profile.name}")
+    report = Report(out, Store(study.cache.root), thesis_roles(configs))
     views = res.views
     for vi, (vlabel, results) in enumerate(views.items()):
         for r in results:
@@ -290,7 +304,7 @@ def run_study(profile, names, configs, out_dir, no_agreement, executor, sweep=Tr
     report.reproduction(views, res.ghosts)
     converged = list(views.values())[-1] if views else []
     report.speed_error(converged)
-    report.history_convergence(res.statics, THESIS_HISTORY)
+    report.history_convergence(res.statics, study.profile.thesis_history)
     report.sparse_cost(converged + [g for gs in res.ghosts.values() for g in gs])
     report.convergence(res.references)
     summary = {**res.stats, "seconds": round(_time.perf_counter() - start, 2), "profile": study.profile.name,
@@ -305,23 +319,30 @@ def run_study(profile, names, configs, out_dir, no_agreement, executor, sweep=Tr
     return out
 
 
+PROFILE_OPTION = click.option("--profile", type=click.Choice(["quick", "full"]), default="quick", show_default=True,
+                              help="A built-in study file (study/profiles/); STUDY_FILE replaces it.")
+
+
 @main.command()
-@click.option("--profile", type=click.Choice(["quick", "full"]), default="quick", show_default=True)
+@click.argument("study_file", required=False, type=click.Path(dir_okay=False))
+@PROFILE_OPTION
 @click.option("--scenes", "scene_list", default=None, callback=_scene_list,
-              help="Comma-separated scenes (default: every built-in).")
+              help="Comma-separated scenes (default: the study file's, or every built-in).")
 @click.option("--techniques", "tech_list", multiple=True,
-              help="Technique as 'name' or 'Label=name:field=value,...' (repeatable; default: the thesis's set).")
+              help="Technique as 'name', 'file.py:Class' or 'Label=name:field=value,...' (repeatable; "
+                   "default: the study file's).")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
-              help="Output folder (default: out/<profile>); it keeps only this study's tables and figures.")
+              help="Output folder (default: the study file's, or out/<name>); it keeps only this study's files.")
 @click.option("--no-agreement", is_flag=True, help="Skip the per-scene reference agreement figure.")
 @_execution_options
-def run(profile, scene_list, tech_list, out_dir, no_agreement, workers, threads, scheduler):
-    """Run the static and ghosting tests and write tables, maps and plots (make-style)."""
+def run(study_file, profile, scene_list, tech_list, out_dir, no_agreement, workers, threads, scheduler):
+    """Run a study (a study file, or a built-in profile) and write tables, maps and plots (make-style)."""
     from scenes import builtin_names
-    names = scene_list or builtin_names()
-    configs = _techniques(tech_list)
-    run_study(profile, names, configs, out_dir, no_agreement, _executor(workers, threads, scheduler),
-              sweep=not tech_list)
+    prof = _profile(study_file, profile)
+    names = scene_list or list(prof.scenes) or builtin_names()
+    configs = _techniques(tech_list, prof.techniques)
+    run_study(prof, names, configs, out_dir, no_agreement or not prof.agreement,
+              _executor(workers, threads, scheduler), sweep=prof.sweep and not tech_list)
 
 
 def _technique_names(ctx, param, value):
@@ -364,15 +385,17 @@ def bench(width, height, repeats, tech_names, as_json):
 @main.command()
 @click.argument("a")
 @click.argument("b")
-@click.option("--scenes", "scene_list", default="pipe,sphere_ghosting", show_default=True, callback=_scene_list,
-              help="Comma-separated scenes.")
-@click.option("--profile", type=click.Choice(["quick", "full"]), default="quick", show_default=True)
+@click.option("--scenes", "scene_list", default=None, callback=_scene_list,
+              help="Comma-separated scenes (default: the study file's, or pipe,sphere_ghosting).")
+@PROFILE_OPTION
+@click.option("--study", "study_file", type=click.Path(dir_okay=False), default=None,
+              help="A study file for the scenes, resolution, protocols and reference settings.")
 @click.option("--max-worse", "gates", multiple=True,
               help="METRIC=THRESHOLD: exit 1 if B is worse than A by more than THRESHOLD on average "
                    "(e.g. psnr=0.25, ssim=0.002, mse=1.0, flip_ldr=0.002). Repeatable.")
 @click.option("--json", "as_json", is_flag=True, help="Print one strict JSON object (nothing else on stdout).")
 @_execution_options
-def ab(a, b, scene_list, profile, gates, as_json, workers, threads, scheduler):
+def ab(a, b, scene_list, profile, study_file, gates, as_json, workers, threads, scheduler):
     """Compare technique configuration B against A: paired differences with bootstrap intervals.
 
     A and B are 'name' or 'Label=name:field=value,...', e.g.
@@ -381,6 +404,8 @@ def ab(a, b, scene_list, profile, gates, as_json, workers, threads, scheduler):
     from study.run import Study
     from study.tasks import TaskError
     ca, cb = _techniques((a, b)) if a != b else (_techniques((a,))[0], _techniques((a,))[0])
+    prof = _profile(study_file, profile)
+    scene_list = scene_list or list(prof.scenes) or ["pipe", "sphere_ghosting"]
     _load_scenes(scene_list)
     limits = {}
     for g in gates:
@@ -392,8 +417,8 @@ def ab(a, b, scene_list, profile, gates, as_json, workers, threads, scheduler):
         except ValueError:
             _fail(f"--max-worse {g!r}: threshold {v!r} is not a number")
     try:
-        res = compare(ca, cb, scene_list, profile, progress=not as_json,
-                      study=Study(profile, progress=not as_json, executor=_executor(workers, threads, scheduler)))
+        res = compare(ca, cb, scene_list, prof, progress=not as_json,
+                      study=Study(prof, progress=not as_json, executor=_executor(workers, threads, scheduler)))
     except TaskError as exc:
         _fail(str(exc))
     failed = {m: res.worse_by(m) for m, lim in limits.items() if res.worse_by(m) > lim}
@@ -416,14 +441,15 @@ def ab(a, b, scene_list, profile, gates, as_json, workers, threads, scheduler):
 
 
 @main.command()
-@click.option("--profile", type=click.Choice(["quick", "full"]), default="quick", show_default=True)
+@click.argument("study_file", required=False, type=click.Path(dir_okay=False))
+@PROFILE_OPTION
 @click.option("--scenes", "scene_list", default=None, callback=_scene_list,
-              help="Comma-separated scenes (default: every built-in).")
+              help="Comma-separated scenes (default: the study file's, or every built-in).")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
-              help="The study's output folder (default: out/<profile>).")
+              help="The study's output folder (default: the study file's, or out/<name>).")
 @click.option("--no-pdf", is_flag=True, help="Only regenerate paper/generated/, do not run LaTeX.")
 @_execution_options
-def paper(profile, scene_list, out_dir, no_pdf, workers, threads, scheduler):
+def paper(study_file, profile, scene_list, out_dir, no_pdf, workers, threads, scheduler):
     """Regenerate the study, copy its tables and figures into paper/generated/, build the PDF."""
     import shutil
     import subprocess
@@ -432,8 +458,9 @@ def paper(profile, scene_list, out_dir, no_pdf, workers, threads, scheduler):
     from scenes import builtin_names
     from study.store import write_bytes_atomic, write_text_atomic
 
-    src = run_study(profile, scene_list or builtin_names(), _techniques(()), out_dir, False,
-                    _executor(workers, threads, scheduler))
+    prof = _profile(study_file, profile)
+    src = run_study(prof, scene_list or list(prof.scenes) or builtin_names(), _techniques((), prof.techniques),
+                    out_dir, not prof.agreement, _executor(workers, threads, scheduler), sweep=prof.sweep)
     listed = json.loads((src / "manifest.json").read_text())["artefacts"]   # only this study's files
     root = Path(__file__).resolve().parent.parent / "paper"
     gen = root / "generated"

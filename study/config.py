@@ -1,9 +1,20 @@
-"""What a study run compares: technique configurations and profiles."""
+"""What a study run compares: technique configurations and profiles.
+
+A technique is named by a registry name (`taa_impl.TECHNIQUES`), by an entry point of the group
+`taa_study.techniques` in an installed package, or by a file of the user's own,
+`path/to/my_taa.py:ClassName`. All three give a `taa_impl.base.Technique` subclass driven exactly
+like the built-in ones; its module's source (wherever it lives) is part of its cache key.
+"""
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import importlib.util
 import json
+import sys
 from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
 
 from .protocols import Protocol
 
@@ -16,8 +27,14 @@ class TechniqueConfig:
     overrides: tuple = ()          # ((field, value), ...) so the config is hashable
 
     def make(self):
+        return resolve_technique(self.name)(**dict(self.overrides))
+
+    def is_default(self, name: str) -> bool:
+        """This is registry technique `name` with its default parameters (e.g. the thesis's TAA)."""
+        if self.name != name:
+            return False
         import taa_impl
-        return taa_impl.make(self.name, **dict(self.overrides))
+        return self.make().params == taa_impl.make(name).params
 
     def key_data(self) -> dict:
         """What identifies this technique's output: registry name, effective parameters, and the
@@ -31,9 +48,16 @@ class TechniqueConfig:
 
     @classmethod
     def parse(cls, text: str) -> "TechniqueConfig":
-        """'name' or 'label=name:field=value,field=value' (values parsed as JSON when they can be)."""
-        label, _, rest = text.partition("=") if "=" in text.split(":")[0] else ("", "", text)
-        name, _, params = rest.partition(":")
+        """'name' or 'label=name:field=value,field=value' (values parsed as JSON when they can be);
+        name may be 'path/to/file.py:ClassName'."""
+        head = text.split(":")[0]
+        label, _, rest = text.partition("=") if "=" in head and ".py" not in head.split("=")[0] else ("", "", text)
+        if ".py:" in rest:
+            path, _, tail = rest.partition(".py:")
+            cls_name, _, params = tail.partition(":")
+            name = f"{Path(path + '.py').resolve()}:{cls_name}"
+        else:
+            name, _, params = rest.partition(":")
         overrides = []
         for item in filter(None, params.split(",")):
             k, eq, v = item.partition("=")
@@ -47,69 +71,129 @@ class TechniqueConfig:
         return cls(label or text, name, tuple(overrides))
 
 
-# The thesis's columns (No AA | FXAA | SMAA | Uncharted | Improved), then the other source
-# documents' techniques and an accumulation buffer.
-DEFAULT_TECHNIQUES = (
-    TechniqueConfig("No AA", "noaa"),
-    TechniqueConfig("FXAA", "fxaa"),
-    TechniqueConfig("SMAA", "smaa"),
-    TechniqueConfig("Uncharted", "taa_baseline"),
-    TechniqueConfig("Improved", "taa_improved"),
-    # The thesis sharpens both TAAs' output; measured here the sharpen costs the improved TAA
-    # about 11 dB, so the same TAA without it is shown beside it.
-    TechniqueConfig("Improved, no sharpen", "taa_improved", (("sharpen", "none"),)),
-    TechniqueConfig("Sparse SS", "taa_sparse"),
-    TechniqueConfig("Ferrando", "taa_ferrando_text"),
-    TechniqueConfig("SSAA 16x", "accumulation", (("samples", 16),)),
-)
-
 # Sparse supersampling's threshold mu against its cost (seed 002 chose 0.2 as the trade-off).
 SPARSE_SWEEP = tuple(TechniqueConfig(f"Sparse mu={mu}", "taa_sparse", (("mu", mu),))
                      for mu in (0.05, 0.1, 0.2, 0.4, 0.8))
 
-
-# Log-spaced history lengths of the convergence study (one 256-frame run judged at each).
-CHECKPOINTS = (1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256)
 THESIS_HISTORY = 16          # the thesis keeps frame 16 after a reset (spec section 10)
-# k = 0.979 weighs the first frame below 1 % after ln 0.01 / ln k = 217 frames (spec section 13).
-CONVERGED_HISTORY = 256
-CONVERGED_WARMUP = 224       # a multiple of the jitter period, so warm-up frames repeat 16 raster frames
+
+# The thesis's columns by what they are: a registry technique with its default parameters.
+THESIS_TECHNIQUES = {"No AA": "noaa", "FXAA": "fxaa", "SMAA": "smaa", "Uncharted": "taa_baseline",
+                     "Improved": "taa_improved"}
+
+
+def thesis_roles(configs) -> dict[str, str]:
+    """Thesis column -> label of the first config that is that technique with default parameters."""
+    out = {}
+    for role, name in THESIS_TECHNIQUES.items():
+        for c in configs:
+            if c.is_default(name):
+                out[role] = c.label
+                break
+    return out
 
 
 @dataclass(frozen=True)
 class Profile:
+    """A whole study as a study file describes it (study.studyfile; the built-in profiles are files)."""
     name: str
-    use_full_resolution: bool
+    resolution: object                    # 'quick' | 'full' (each scene's own) | (w, h)
     static: Protocol
-    ghosting: tuple = ()                  # ghosting protocols (cold = the thesis's, warm = converged)
-    target_noise_db: float = 60.0         # reference convergence target
+    ghosting: tuple = ()                  # ghosting protocols
+    ref_settings: tuple = (("target_noise_db", 60.0),)   # ReferenceCache.get settings, as items
     ghosting_techniques_skip: tuple = ("accumulation",)   # N sub-frames per frame: too slow for sequences
     sweep_scenes: tuple = ("sphere_ghosting", "disocclusion")  # where the sparse-supersampling mu sweep runs
     agreement_samples: int = 64
+    scenes: tuple = ()                    # scene specs; () = every built-in
+    techniques: tuple = ()                # TechniqueConfigs
+    out: str | None = None
+    agreement: bool = True
+    sweep: bool = False
+    thesis_history: int = THESIS_HISTORY
+    source: str = ""
 
     @property
     def static_views(self) -> dict[str, int]:
         """Labelled static protocols read from the one static run: label -> history length."""
-        return {f"thesis ({THESIS_HISTORY} frames, cold)": THESIS_HISTORY,
-                f"converged ({self.static.history} frames)": self.static.history}
+        views = {f"thesis ({self.thesis_history} frames, cold)": self.thesis_history}
+        if self.static.history != self.thesis_history:
+            views[f"converged ({self.static.history} frames)"] = self.static.history
+        return views
 
 
-def _profile(name: str, full: bool, ghost_frames: int, **kw) -> Profile:
-    return Profile(name, full, Protocol("static", "static", history=CONVERGED_HISTORY, checkpoints=CHECKPOINTS),
-                   (Protocol("ghosting", "ghosting", frames=ghost_frames, warmup=0),
-                    Protocol("ghosting_warm", "ghosting", frames=ghost_frames, warmup=CONVERGED_WARMUP)), **kw)
+def get_profile(name_or_file) -> Profile:
+    """A built-in profile by name or a study file by path (study.studyfile)."""
+    from . import studyfile
+    if isinstance(name_or_file, Profile):
+        return name_or_file
+    if str(name_or_file).endswith(".toml"):
+        return studyfile.load_study(name_or_file)
+    return studyfile.profile(name_or_file)
 
 
-PROFILES = {
-    "quick": _profile("quick", False, 24),
-    "full": _profile("full", True, 100, ghosting_techniques_skip=(), agreement_samples=256),
-}
+class TechniqueError(ValueError):
+    pass
+
+
+ENTRY_POINT_GROUP = "taa_study.techniques"
+
+
+@lru_cache(maxsize=None)
+def _file_module(path: str, mtime_ns: int):
+    # A stable module name per file, registered in sys.modules so that provenance can find its source.
+    name = "taa_user_" + hashlib.sha256(path.encode()).hexdigest()[:12]
+    spec = importlib.util.spec_from_file_location(name, path)
+    if spec is None or spec.loader is None:
+        raise TechniqueError(f"technique file {path}: not a Python file")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[name] = mod
+    try:
+        spec.loader.exec_module(mod)
+    except Exception as exc:
+        del sys.modules[name]
+        raise TechniqueError(f"technique file {path}: {type(exc).__name__}: {exc}") from None
+    return mod
+
+
+def resolve_technique(name: str):
+    """The factory of a technique name: registry, entry point, or 'file.py:Class'."""
+    import taa_impl
+    from taa_impl.base import Technique
+    if name in taa_impl.TECHNIQUES:
+        return taa_impl.TECHNIQUES[name]
+    if ".py:" in name:
+        path, _, cls_name = name.rpartition(":")
+        p = Path(path)
+        if not p.is_file():
+            raise TechniqueError(f"technique {name!r}: no file {path}")
+        mod = _file_module(str(p.resolve()), p.stat().st_mtime_ns)
+        obj = getattr(mod, cls_name, None)
+        where = f"technique file {path}"
+    else:
+        from importlib.metadata import entry_points
+        eps = [ep for ep in entry_points(group=ENTRY_POINT_GROUP) if ep.name == name]
+        if not eps:
+            raise TechniqueError(f"unknown technique {name!r}: not in the registry ({', '.join(sorted(taa_impl.TECHNIQUES))}), "
+                                 f"not an entry point of {ENTRY_POINT_GROUP!r}, not 'file.py:Class'")
+        try:
+            obj = eps[0].load()
+        except Exception as exc:
+            raise TechniqueError(f"technique entry point {name!r}: {type(exc).__name__}: {exc}") from None
+        cls_name, where = eps[0].value, f"entry point {name!r}"
+    if obj is None:
+        raise TechniqueError(f"{where} has no class {cls_name!r}")
+    if not (isinstance(obj, type) and issubclass(obj, Technique)):
+        raise TechniqueError(f"{where}: {cls_name} is not a taa_impl.base.Technique subclass")
+    return obj
 
 
 def available(configs) -> tuple[list, list]:
-    """(configs whose technique exists, names that do not exist yet)."""
-    import taa_impl
+    """(configs whose technique resolves, configs that do not)."""
     ok, missing = [], []
     for c in configs:
-        (ok if c.name in taa_impl.TECHNIQUES else missing).append(c)
+        try:
+            resolve_technique(c.name)
+            ok.append(c)
+        except TechniqueError:
+            missing.append(c)
     return ok, missing

@@ -96,9 +96,10 @@ class Planner:
 
     # -- tests -----------------------------------------------------------------------------------------
     def add_test(self, spec: str, scene, protocol: Protocol, configs: list[TechniqueConfig],
-                 w: int, h: int, maps: str = "last") -> Test:
-        """Plan one test. `maps`: which judged frames keep their SSIM/FLIP maps
-        ('last': the last judged frame of each run; 'static': every static view; 'none')."""
+                 w: int, h: int, maps="last") -> Test:
+        """Plan one test. `maps`: which judged frames keep their SSIM/FLIP maps: 'last' (the last
+        judged frame of each run), 'none', or a tuple of history lengths (the static views; a
+        technique without history keeps its one frame)."""
         schedule = protocol.schedule(scene)
         test = Test(scene.name, spec, protocol, list(configs), w, h)
         kept_t = sorted({s.t for s in schedule if s.keep})
@@ -119,9 +120,9 @@ class Planner:
             frames = sorted(test.frame_times[c.label])
             if maps == "none":
                 mf = []
-            elif maps == "static":
-                mf = sorted({max(f for f in frames if f <= v) for v in self._static_views(protocol) if
-                             any(f <= v for f in frames)} | {frames[-1]})
+            elif isinstance(maps, tuple):
+                mf = sorted({max(f for f in frames if f <= v) for v in maps if any(f <= v for f in frames)}
+                            | {frames[-1]})
             else:
                 mf = [frames[-1]]
             test.maps_for[c.label] = mf
@@ -159,11 +160,6 @@ class Planner:
                     test.metrics_folders[c.label]), deps)
         self.plan.tests.append(test)
         return test
-
-    @staticmethod
-    def _static_views(protocol: Protocol):
-        from .config import THESIS_HISTORY
-        return (THESIS_HISTORY, protocol.history) if protocol.kind == "static" else ()
 
     def _run_intact(self, folder: Path, key: str, verify: bool) -> bool:
         """A run whose frames the report reads must be intact too (else it is re-made)."""

@@ -34,6 +34,17 @@ THESIS_STATIC_PSNR = {
     "hairball_unlit": (31.660, 34.888, 34.086, 28.638, 38.005),
     "hairball_lit": (17.009, 20.002, 18.848, 16.535, 24.579),
 }
+THESIS_STATIC_SSIM = {
+    "pipe": (0.999, 0.999, 1.000, 0.996, 1.000),
+    "pipe_tilted": (0.998, 0.999, 1.000, 0.996, 0.999),
+    "blinds": (0.986, 0.990, 0.995, 0.976, 0.995),
+    "arched_window": (0.992, 0.994, 0.997, 0.989, 0.996),
+    "atrium": (0.988, 0.991, 0.991, 0.938, 0.991),
+    "flowers": (0.959, 0.975, 0.972, 0.863, 0.985),
+    "hard_edges": (0.997, 0.997, 0.998, 0.989, 0.998),
+    "hairball_unlit": (0.962, 0.978, 0.974, 0.934, 0.985),
+    "hairball_lit": (0.801, 0.865, 0.841, 0.785, 0.937),
+}
 THESIS_GHOST_MSE = {"sphere_ghosting": (28.634, 19.501), "hairball_rotating_unlit": (81.887, 38.534),
                     "hairball_rotating_lit": (875.687, 671.202)}
 
@@ -79,10 +90,13 @@ class Report:
 
     FOLDERS = ("tables", "images", "maps", "plots")
 
-    def __init__(self, out: Path, store=None, improved_label: str = "Improved", baseline_label: str = "Uncharted"):
+    def __init__(self, out: Path, store=None, roles: dict | None = None):
+        """`roles`: thesis column (THESIS_COLUMNS) -> the label of the technique that *is* it (registry
+        name with default parameters; study.config.thesis_roles), whatever the study calls it."""
         self.out = Path(out)
         self.store = store
-        self.improved, self.baseline = improved_label, baseline_label
+        self.roles = dict(roles) if roles is not None else {c: c for c in THESIS_COLUMNS}
+        self.improved = self.roles.get("Improved")
         self.manifest: dict[str, dict] = {}
         self.markdown: list[str] = []
         try:
@@ -239,33 +253,44 @@ class Report:
                 continue
             t = r.frames[-1]
             thesis = dict(zip(THESIS_COLUMNS, THESIS_STATIC_PSNR[r.scene]))
-            ours = {l: r.per_frame[l][t]["psnr"] for l in THESIS_COLUMNS if l in r.per_frame}
+            ours = {c: r.per_frame[l][t]["psnr"] for c, l in self.roles.items() if l in r.per_frame}
             shared = [l for l in THESIS_COLUMNS if l in ours]
             t_rank = [l for l in _rank(thesis) if l in shared]
             o_rank = _rank(ours)
             claim_t = thesis["Improved"] > thesis["Uncharted"]
             claim_o = ours.get("Improved", -1) > ours.get("Uncharted", math.inf) if {"Improved", "Uncharted"} <= set(ours) else None
             missing = [l for l in THESIS_COLUMNS if l not in ours]
+            ssim_t = dict(zip(THESIS_COLUMNS, THESIS_STATIC_SSIM[r.scene]))
+            vol = {c: r.per_frame[l][t].get("ssim_volume") for c, l in self.roles.items() if l in r.per_frame}
+            ssim_cell = (f"{ssim_t['Improved'] - ssim_t['Uncharted']:+.3f} / "
+                         + (f"{vol['Improved'] - vol['Uncharted']:+.3f}"
+                            if vol.get("Improved") is not None and vol.get("Uncharted") is not None else "–"))
             rows.append([f"{r.scene} ({vlabel})", " > ".join(_rank(thesis)), " > ".join(o_rank),
                          f"{thesis['Improved'] - thesis['Uncharted']:+.2f}",
                          "–" if claim_o is None else f"{ours['Improved'] - ours['Uncharted']:+.2f}",
                          f"{_spearman(t_rank, o_rank):.2f}",
-                         "–" if claim_o is None else ("yes" if claim_o == claim_t else "no"),
+                         "–" if claim_o is None else ("yes" if claim_o == claim_t else "no"), ssim_cell,
                          ("missing: " + ", ".join(missing)) if missing else ""])
         for g in [g for gs in ghosts.values() for g in gs]:
-            if g.scene not in THESIS_GHOST_MSE or not {"Improved", "Uncharted"} <= set(g.per_frame):
+            li, lu = self.roles.get("Improved"), self.roles.get("Uncharted")
+            if g.scene not in THESIS_GHOST_MSE or not {li, lu} <= set(g.per_frame):
                 continue
             tu, ti = THESIS_GHOST_MSE[g.scene]
-            mu = float(np.mean([g.per_frame["Uncharted"][t]["mse"] for t in g.frames]))
-            mi = float(np.mean([g.per_frame["Improved"][t]["mse"] for t in g.frames]))
+            mu = float(np.mean([g.per_frame[lu][t]["mse"] for t in g.frames]))
+            mi = float(np.mean([g.per_frame[li][t]["mse"] for t in g.frames]))
             rows.append([f"{g.scene} ({g.test}, mean MSE)", f"Improved {ti:.1f} < Uncharted {tu:.1f}",
                          f"Improved {mi:.1f} {'<' if mi < mu else '>='} Uncharted {mu:.1f}",
-                         f"{ti - tu:+.1f} (MSE)", f"{mi - mu:+.1f} (MSE)", "–", "yes" if mi < mu else "no",
+                         f"{ti - tu:+.1f} (MSE)", f"{mi - mu:+.1f} (MSE)", "–", "yes" if mi < mu else "no", "",
                          f"{len(g.frames)} frames (thesis: 100)"])
         header = ["test", "thesis ranking (PSNR)", "our ranking (PSNR)", "thesis Improved−Uncharted",
-                  "ours Improved−Uncharted", "rank correlation ρ", "main claim holds", "note"]
+                  "ours Improved−Uncharted", "rank correlation ρ", "main claim holds",
+                  "SSIM Improved−Uncharted, thesis / ours (MATLAB volume SSIM)", "note"]
         self._table("reproduction", Table("Reproduction of the thesis's results (spec section 11)", header, rows,
-                                          "Main claim: the improved TAA beats the Uncharted 4 / INSIDE TAA."),
+                                          "Main claim: the improved TAA beats the Uncharted 4 / INSIDE TAA. Columns are the techniques "
+                                          "that are the thesis's (registry name, default parameters): "
+                                          + ", ".join(f"{c} = {l!r}" for c, l in self.roles.items())
+                                          + ". The thesis computed SSIM with MATLAB's ssim on RGB volumes; "
+                                          "ours in that form is compared with it."),
                     {"rows": [r[0] for r in rows]})
 
     def speed_error(self, statics) -> None:

@@ -17,7 +17,7 @@ from provenance import task_key
 from references import ReferenceCache
 from scenes import ResolvedScene
 
-from .config import PROFILES, THESIS_HISTORY, Profile, TechniqueConfig
+from .config import Profile, TechniqueConfig, get_profile
 from .execute import Executor, execute
 from .plan import Planner
 from .tasks import Context, load_scene
@@ -61,16 +61,17 @@ class StudyResults:
 class Study:
     def __init__(self, profile: str | Profile = "quick", cache_root: Path | None = None, progress: bool = True,
                  log=None, executor: Executor = Executor()):
-        self.profile: Profile = PROFILES[profile] if isinstance(profile, str) else profile
+        self.profile: Profile = get_profile(profile)
         self.cache = ReferenceCache(cache_root)
         self.progress = progress
         self.log = log or (lambda m: print(m, file=sys.stderr))
         self.executor = executor
         self.ctx = Context(str(self.cache.root), executor.threads)
-        self.ref_settings = {"target_noise_db": self.profile.target_noise_db}
+        self.ref_settings = dict(self.profile.ref_settings)
 
     def resolution(self, scene: ResolvedScene) -> tuple[int, int]:
-        return scene.resolution("full" if self.profile.use_full_resolution else "quick")
+        r = self.profile.resolution
+        return tuple(r) if isinstance(r, (tuple, list)) else scene.resolution(r)
 
     def reference(self, scene: ResolvedScene, t: int, w: int, h: int):
         return self.cache.get(scene, t, w, h, **self.ref_settings)[0]
@@ -83,7 +84,8 @@ class Study:
         statics, ghosts, sweeps = [], [], []
         for spec, scene in scenes:
             w, h = self.resolution(scene)
-            statics.append(planner.add_test(spec, scene, self.profile.static, configs, w, h, maps="static"))
+            statics.append(planner.add_test(spec, scene, self.profile.static, configs, w, h,
+                                             maps=tuple(self.profile.static_views.values())))
             if ghosting and is_animated(scene):
                 gconf = [c for c in configs if c.name not in self.profile.ghosting_techniques_skip]
                 for p in self.profile.ghosting:
@@ -215,4 +217,4 @@ def _view(full: TestResult, label: str, n: int) -> TestResult:
     return v
 
 
-__all__ = ["Study", "StudyResults", "TestResult", "is_animated", "THESIS_HISTORY"]
+__all__ = ["Study", "StudyResults", "TestResult", "is_animated"]

@@ -1,0 +1,98 @@
+"""A researcher's own study: the README's study file and own technique work from the command line,
+study files are validated like scene files, and tables find the thesis's techniques by what they are."""
+import csv
+import json
+import re
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from study.cli import main
+from study_fixtures import write_scenes
+
+README = (Path(__file__).parent.parent / "README.md").read_text()
+
+
+def _block(header: str, lang: str) -> str:
+    section = README[README.index(header):]
+    return re.search(rf"```{lang}\n(.*?)```", section, re.S).group(1)
+
+
+def _invoke(args, code=0):
+    r = CliRunner().invoke(main, [str(a) for a in args])
+    assert r.exit_code == code, r.output
+    assert "Traceback" not in r.output
+    return r
+
+
+@pytest.fixture
+def own(tmp_path, monkeypatch):
+    monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))
+    (tmp_path / "my_taa.py").write_text(_block("## Your own technique", "python"))
+    moving, still = write_scenes(tmp_path)
+    study = _block("## Your own study", "toml")
+    study = study.replace('scenes = ["pipe", "sphere_ghosting"]', f'scenes = ["{Path(still).name}", "{Path(moving).name}"]')
+    study = study.replace("resolution = [160, 90]", "resolution = [32, 18]")
+    (tmp_path / "my_study.toml").write_text(study)
+    return tmp_path
+
+
+def test_readme_study_file_and_own_technique_run(own):
+    _invoke(["run", own / "my_study.toml"])
+    out = own / "out" / "my_study"
+    summary = json.loads((out / "manifest.json").read_text())["summary"]
+    assert summary["techniques"] == ["Uncharted", "Mine"]
+    assert summary["scenes"] == [str(own / "tiny_still.toml"), str(own / "tiny_moving.toml")]
+    head = list(csv.reader((out / "tables" / "headline.csv").read_text().splitlines()))
+    assert head[0][:4] == ["scene", "protocol", "Uncharted", "Mine"]
+    assert [r[1] for r in head[1:3]] == ["thesis (16 frames, cold)", "converged (64 frames)"]
+    conv = (out / "tables" / "history_convergence.csv").read_text()
+    assert "PSNR at 16 (thesis)" in conv and "tiny_still,Mine," in conv
+    assert (out / "tables" / "ghosting_warm_tiny_moving.md").exists()
+    assert not (out / "tables" / "ghosting_tiny_moving.md").exists()      # only the file's protocols
+
+    # The widened box is a different technique; an edit of the file recomputes its runs only.
+    s1 = summary
+    (own / "my_taa.py").write_text((own / "my_taa.py").read_text() + "\n# an edit\n")
+    _invoke(["run", own / "my_study.toml"])
+    s2 = json.loads((out / "manifest.json").read_text())["summary"]
+    assert s1["runs_computed"] == 6 and s2["runs_computed"] == 3 and s2["runs_cached"] == 3
+
+
+def test_readme_ab_of_the_example_against_the_baseline(own):
+    r = _invoke(["ab", "taa_baseline", f"Mine={own / 'my_taa.py'}:Box3x3TAA", "--study", own / "my_study.toml",
+                 "--json"])
+    res = json.loads(r.stdout)
+    assert res["b"] == "Mine" and res["overall"]["psnr"]["n"] == 2 + 4    # 2 static frames + the moving scene's 4 frames
+    assert res["overall"]["psnr"]["mean"] != 0                              # the clip box matters
+    r = _invoke(["ab", "taa_baseline", f"{own / 'my_taa.py'}:Box3x3TAA:widen=2", "--study", own / "my_study.toml"],
+                code=2)
+    assert "widen must be in [0, 1], got 2" in r.output
+
+
+@pytest.mark.parametrize("text, message", [
+    ('name = ""', "field name"),
+    ('name = "x"\nresolution = [4, 4]', "field resolution"),
+    ('name = "x"\n[[techniques]]\nspec = "nosuch"', "field techniques[0]: unknown technique 'nosuch'"),
+    ('name = "x"\n[[techniques]]\nspec = "taa_baseline:k_min=3"', "field techniques[0]"),
+    ('name = "x"\n[protocols.static]\nhistory = 8\ncheckpoints = [4, 16]', "field protocols.static"),
+    ('name = "x"\n[protocols.static]\nthesis_history = 5', "field protocols.static.thesis_history"),
+    ('name = "x"\n[reference]\nspp = 4', "field reference.spp: unknown reference setting"),
+    ('name = "x"\nsurprise = 1', "field surprise"),
+    ('name = "x"\n[[protocols.ghosting]]\nname = "g"\nframes = 0', "field protocols.ghosting[0].frames"),
+    ('name = = 1', "not valid TOML"),
+])
+def test_bad_study_files_exit_2_naming_file_field_and_value(tmp_path, text, message):
+    f = tmp_path / "bad.toml"
+    f.write_text(text)
+    r = _invoke(["run", f], code=2)
+    assert message in r.output and str(f) in r.output
+
+
+def test_reproduction_finds_the_thesis_techniques_whatever_their_labels(tmp_path, monkeypatch):
+    from study.config import TechniqueConfig, thesis_roles
+    configs = [TechniqueConfig.parse(s) for s in ("Base=taa_baseline", "Imp=taa_improved",
+                                                  "Imp sharp none=taa_improved:sharpen=none", "Plain=noaa")]
+    assert thesis_roles(configs) == {"No AA": "Plain", "Uncharted": "Base", "Improved": "Imp"}
+    assert thesis_roles([TechniqueConfig.parse("X=taa_improved:sharpen=none")]) == {}
