@@ -96,3 +96,22 @@ def test_reproduction_finds_the_thesis_techniques_whatever_their_labels(tmp_path
                                                   "Imp sharp none=taa_improved:sharpen=none", "Plain=noaa")]
     assert thesis_roles(configs) == {"No AA": "Plain", "Uncharted": "Base", "Improved": "Imp"}
     assert thesis_roles([TechniqueConfig.parse("X=taa_improved:sharpen=none")]) == {}
+
+
+def test_a_technique_from_an_installed_package_entry_point(tmp_path, monkeypatch):
+    """An installed distribution declaring [taa_study.techniques] is found by name."""
+    (tmp_path / "my_aa_pkg.py").write_text(
+        "from taa_impl.simple import NoAA\nclass Centre(NoAA):\n    name = 'centre_ep'\n")
+    info = tmp_path / "my_aa_pkg-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: my-aa-pkg\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text("[taa_study.techniques]\ncentre_ep = my_aa_pkg:Centre\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    from provenance import code_token
+    from study.config import TechniqueConfig, resolve_technique
+    cls = resolve_technique("centre_ep")
+    assert cls.__name__ == "Centre" and TechniqueConfig.parse("centre_ep").make().name == "centre_ep"
+    assert "my_aa_pkg" in TechniqueConfig.parse("centre_ep").key_data()["class"]
+    assert code_token(cls)          # its own source is keyed
+    with pytest.raises(ValueError, match="not an entry point of 'taa_study.techniques'"):
+        resolve_technique("centre_nope")
