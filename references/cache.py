@@ -33,8 +33,8 @@ def default_cache_dir() -> Path:
     return Path(os.environ.get("TAA_STUDY_CACHE", Path.cwd() / ".cache" / "taa-study"))
 
 
-def code_version() -> str:
-    root = Path(__file__).resolve().parent.parent
+def code_version(root: Path | None = None) -> str:
+    root = Path(root) if root is not None else Path(__file__).resolve().parent.parent
     h = hashlib.sha256()
     for rel in _CODE_FILES:
         h.update((root / rel).read_bytes())

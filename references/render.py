@@ -57,8 +57,8 @@ from .mitsuba_scene import SharedShadingIntegrator, path_integrator, path_scene,
 LSB = 1.0 / 255.0
 _MARGIN = 1.2            # extra samples planned beyond the predicted count
 _GROWTH = 4              # at most this many times a pixel's samples after one round
-_FIRST = 16               # samples per replicate, at least, in a pixel's first set (128 with 32)
-_FIRST_MAX = 16          # and at most, as the pilot's own noise estimate is rough
+_FIRST = 32              # samples per replicate, at least, in a pixel's first set (1024 with 32)
+_FIRST_MAX = 32          # and at most, as the pilot's own noise estimate is rough
 _CHUNK_RAYS = 1 << 22    # rays per Dr.Jit launch
 
 

@@ -62,9 +62,14 @@ def _print_agreement(a) -> None:
     click.echo(f"  interior max |raster - Mitsuba ray| at pixel centres: {a.interior_max_abs_err:.2e} "
                f"over {a.interior_pixels} pixels  [target <= {TARGETS['interior_max_abs_err']:g}: "
                f"{mark[ok['interior_max_abs_err']]}]")
-    click.echo(f"  reference: {a.reference_spp} spp, {a.reference_seconds:.1f} s"
+    click.echo(f"  reference: {a.reference_spp} spp mean, {a.reference_spp_max} max, {a.reference_seconds:.1f} s"
                f"{' (cached)' if a.reference_cached else ''}, noise PSNR {a.reference_noise_psnr_db:.2f} dB"
                f"  [target >= {TARGETS['reference_noise_psnr_db']}: {mark[ok['reference_noise_psnr_db']]}]")
+    click.echo(f"  reference per-pixel SE: bound {a.reference_se_bound_lsb:g} LSB, p99.9 {a.reference_se_p999_lsb:.3f}, "
+               f"max {a.reference_se_max_lsb:.3f}, {a.reference_over_bound} pixels over  "
+               f"[{'held' if ok['reference_bound'] else 'BOUND MISSED'}]")
+    click.echo(f"  objects visible at {100 * a.visible_fraction:.1f} % of pixel centres  "
+               f"[{'ok' if ok['objects_visible'] else 'NOTHING TO COMPARE: background only'}]")
     click.echo(f"  single sample per pixel: {a.single_sample} (pixel centres matching a single ray: "
                f"{100 * a.centre_match_fraction:.3f} %)")
 
@@ -85,7 +90,8 @@ def agree(scene_names, all_builtin, frame, profile, width, height, samples, targ
     """Prove the raster and the Mitsuba reference agree on one scene frame.
 
     Exits 1 when a scene misses a target (agreement >= 45 dB, interior error <= 1e-4,
-    reference noise >= 55 dB, single-sample raster)."""
+    reference noise >= 55 dB, every reference pixel within its SE bound, single-sample raster,
+    objects visible)."""
     from scenes import builtin_names
     names = list(scene_names) + (builtin_names() if all_builtin else [])
     if not names:

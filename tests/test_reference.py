@@ -41,14 +41,21 @@ def test_pixel_centre_rays_match_raster_colours_exactly_in_flat_regions():
     np.testing.assert_allclose(rgb[same], b["color"][same], atol=1e-6)
 
 
-def test_convergence_target_is_met_and_recorded():
+def test_bound_is_met_and_recorded():
     scene = two_colour_scene(rotate_deg=23)
-    lo = render_reference(scene, 0, 32, 24, target_noise_db=45, spp_per_pass=16, min_passes=4)
-    hi = render_reference(scene, 0, 32, 24, target_noise_db=62, spp_per_pass=16, min_passes=4)
-    assert lo.noise_psnr_db >= 45 and hi.noise_psnr_db >= 62
-    assert hi.spp > lo.spp
-    # interior pixels are noise-free: one shading value over the whole pixel
-    assert lo.stderr[12, 2].max() == 0.0
+    lo = render_reference(scene, 0, 32, 24, se_bound_lsb=2.0)
+    hi = render_reference(scene, 0, 32, 24, se_bound_lsb=0.5)
+    assert lo.over_bound == 0 and lo.se_max_lsb <= 2.0 * (1 + 1e-5)
+    for ref, bound in ((lo, 2.0), (hi, 0.5)):
+        # pixels still over the bound are counted, and only those that hit the sample cap
+        over = ref.se_lsb > bound * (1 + 1e-5)
+        assert ref.over_bound == over.sum() and np.all(ref.spp_map[over] >= (1 << 16) - 32)
+        assert ref.bound_lsb == bound and ref.spp_map.shape == (24, 32)
+        assert ref.spp == round(ref.spp_mean) and ref.spp_max == ref.spp_map.max()
+    assert hi.spp_mean > lo.spp_mean
+    # interior pixels are noise-free (one shading value over the whole pixel): pilot samples only
+    assert lo.stderr[12, 2].max() == 0.0 and lo.display_stderr[12, 2].max() == 0.0
+    assert lo.spp_map[12, 2] == 16
     # the quad's coverage of an edge pixel is between the two pure colours
     assert np.all(lo.image >= 0) and np.all(lo.image <= 1.0 + 1e-6)
 
@@ -66,6 +73,11 @@ def test_cache_reads_back_detects_corruption_and_leaves_no_partial_file(tmp_path
     h = OpenEXR.File(str(path), header_only=True).header()
     assert h["taa_spp"] == a.spp and h["taa_scene_hash"] == scene.content_hash
     assert abs(h["taa_noise_psnr_db"] - a.noise_psnr_db) < 1e-4   # stored as float32
+    assert h["taa_bound_lsb"] == 0.5 and h["taa_spp_max"] == a.spp_max and h["taa_over_bound"] == a.over_bound
+    assert abs(h["taa_se_max_lsb"] - a.se_max_lsb) < 1e-4 and abs(h["taa_spp_mean"] - a.spp_mean) < 1e-3
+    # per-pixel spp and both standard errors come back as channels
+    assert np.array_equal(b.spp_map, a.spp_map) and np.array_equal(b.display_stderr, a.display_stderr)
+    assert np.array_equal(b.stderr, a.stderr) and b.spp_max > b.spp_map.min()
 
     # A truncated file is detected, reported, removed and rendered again.
     data = path.read_bytes()
@@ -87,6 +99,21 @@ def test_cache_reads_back_detects_corruption_and_leaves_no_partial_file(tmp_path
     names = sorted(p.name for p in path.parent.iterdir())
     assert not any(n.endswith(".part") for n in names)
     assert len(names) == 2          # the two complete references only
+
+
+def test_cache_key_covers_the_display_code(tmp_path):
+    """The stopping rule measures noise through the display transform, so its source is keyed."""
+    import shutil
+    from pathlib import Path
+    from references.cache import _CODE_FILES, code_version
+    root = Path(__file__).resolve().parent.parent
+    for rel in _CODE_FILES:
+        (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(root / rel, tmp_path / rel)
+    assert code_version(tmp_path) == code_version()
+    disp = tmp_path / "display" / "__init__.py"
+    disp.write_text(disp.read_text() + "\n# changed\n")
+    assert code_version(tmp_path) != code_version()
 
 
 def test_path_tracer_with_one_bounce_equals_direct_shadows():
