@@ -1,30 +1,28 @@
 """Converged references: every pixel's display-domain standard error below a bound (issue 9).
 
-A reference pixel is the plain mean of all its samples, which fall in R = `min_passes`
-independent *replicates*. Replicate r starts as uniform Mitsuba pass r (multi-jittered sampler,
-`spp_per_pass` samples, box filter, float32 film) and, in a pixel that needs more, grows by fresh
-multi-jittered sets of the pixel's area; all replicates of a pixel always hold the same number
-of samples, so the mean of the replicate means is the plain mean. The spread of the R replicate
-means gives the standard error of the mean with R - 1 degrees of freedom whatever the sampling
-pattern inside a replicate (stratification makes each replicate better, never the estimate
-wrong): in linear HDR, and through the Jacobian of the display transform at the mean (spec
-section 8, key frozen from the first pass) in display units, with the channels' covariance.
-The bound is on the worst channel, 0.5 LSB of 8 bits by default.
+A pixel's value is the plain mean of all its samples; its standard error (SE) comes from the
+spread of independent estimates, in linear HDR and, through the Jacobian of the display
+transform at the mean (spec section 8, key frozen from the first pass, channels' covariance
+kept), in display units. The bound is on the worst channel, 0.5 LSB of 8 bits by default.
 
-1. Pilot: the R uniform passes.
-2. Rounds: each pixel over the bound gets, in every replicate, one new set of a samples, a a
-   power of two (stratifies well) near what its estimated variance asks for,
-   1.2 m (se / bound)^2 - m for m samples per replicate now (SE ~ 1/sqrt(m) if nothing helps;
-   stratified edges converge faster, so it is a ceiling), and at most 3 m so a poor early
-   estimate is refreshed before much is spent. The rays come from the same Mitsuba sensor through
-   `shading.trace_visible` and `shading.shade` (the pilot's integrator and the raster's shading);
-   transport 'path' calls Mitsuba's path integrator per ray the same way (its other dimensions
-   from an independent sampler), so it gets the same treatment. In the first round every
-   neighbour of a pixel with any noise gets at least one more pilot's worth: an edge or corner
-   that the pilot's samples missed in a pixel looks noise-free there but not next door. Rounds stop when every pixel meets the
-   bound or holds `max_spp`; pixels still over it are counted (`over_bound`), never hidden. If the
-   mean noise (the secondary figure, 10 log10(1 / mean SE^2)) is still below `target_noise_db`,
-   the bound is tightened for more rounds.
+1. Pilot: `min_passes` uniform Mitsuba passes (multi-jittered sampler, `spp_per_pass` samples,
+   box filter, float32 film). Its mean and the spread of its passes are the pilot component.
+2. Every pixel whose pilot passes differ at all (linear domain: the display clip can hide
+   noise), and its 3x3 neighbours (an edge the pilot missed in one pixel shows next door), gets
+   R = `replicates` independent sets of `_FIRST` samples, then rounds: pixels over the bound get
+   one more set per replicate, of a power of two near what the estimated variance asks for,
+   1.2 M (se / bound)^2 - M for M samples now (SE ~ 1/sqrt(M) if stratification does not help,
+   so a ceiling), at most 3x the replicate's size so a poor estimate is refreshed before much is
+   spent. A set is a jittered grid over the pixel, traced through the same Mitsuba sensor and
+   BVH with `shading.trace_visible` and `shading.shade` (the pilot integrator's and the raster's
+   function); transport 'path' calls Mitsuba's path integrator per ray the same way (its other
+   dimensions from an independent sampler), so it gets the same rounds. All R replicates of a
+   pixel hold the same count, so mean = (M_p pilot mean + R m replicate mean) / M, the plain
+   mean, and cov = ((M_p / M)^2 cov_pilot + (R m / M)^2 cov_replicates), the latter with R - 1
+   degrees of freedom however the samples inside a replicate are stratified.
+3. Rounds stop when every pixel meets the bound or holds `max_spp`; pixels still over it are
+   counted (`over_bound`), never hidden. If the mean noise (the secondary figure,
+   10 log10(1 / mean SE^2)) is still below `target_noise_db`, the bound is tightened.
 
 Why stopping on the data leaves the mean (almost) unbiased: each round's new samples are
 independent of everything drawn before and have mean mu, so for a pixel's sample sum S and count
@@ -32,11 +30,12 @@ M (a stopping time: each decision uses only samples already drawn) Wald's identi
 E[S - M mu] = 0 and E[(S - M mu)^2] = E[sum of the rounds' variances]. The plain mean's bias is
 E[(S - M mu)(1/M - E[1/M])], so by Cauchy-Schwarz
     |E[S / M] - mu| <= sqrt(E[(S - M mu)^2]) sd(1/M)  ~  SE x (coefficient of variation of M),
-a fraction of the pixel's own standard error, which the bound keeps below 0.5 LSB. M varies
-little between seeds because the last decision is made from at least a quarter of the final
-count. tests/test_reference_adaptive.py measures the result against a uniform high-spp
-reference and the reported error against a second seed. Noise-free pixels (one colour over the
-whole pixel) stop after the pilot with SE exactly 0.
+a fraction of the pixel's own SE, which the bound keeps below 0.5 LSB; M varies little between
+seeds because the last decision is made from at least a quarter of the final count.
+tests/test_reference_adaptive.py measures the result against a uniform 16384-spp reference and
+the reported SE against a second seed. What no sampling rule sees: a sliver of another surface
+covering well under 1 % of a pixel that all of its samples miss shows no variance (up to ~0.5 LSB
+in that test). Noise-free pixels stop after the pilot with SE exactly 0.
 """
 from __future__ import annotations
 
