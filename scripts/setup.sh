@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
 # Installs everything the project needs on a fresh Debian machine: the system libraries (a libLLVM
-# that Dr.Jit accepts, Mesa's EGL for headless OpenGL) and a virtual environment in .venv.
+# that Dr.Jit accepts, Mesa's EGL for headless OpenGL, Chromium and its WebDriver for the HTML
+# report's browser test) and a virtual environment in .venv. LaTeX is `make paper`'s alone
+# (scripts/setup_latex.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-APT_PACKAGES=(libllvm19 libegl1 libegl-mesa0 libgl1-mesa-dri libglx-mesa0)
+APT_PACKAGES=(libllvm19 libegl1 libegl-mesa0 libgl1-mesa-dri libglx-mesa0 chromium chromium-driver)
 missing=()
 for pkg in "${APT_PACKAGES[@]}"; do
     dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed" || missing+=("$pkg")
