@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 STAMP := .venv/.setup-stamp
 
-.PHONY: study test setup clean-cache
+.PHONY: study test setup clean-cache paper
 
 $(STAMP): pyproject.toml scripts/setup.sh
 	bash scripts/setup.sh
@@ -15,6 +15,15 @@ study: $(STAMP)
 
 test: $(STAMP)
 	$(PY) -m pytest -q
+
+# A LaTeX toolchain when missing (scripts/setup_latex.sh; `make test` never installs TeX), then
+# `taa-study paper`: the study (make-style, cached), its tables and figures into paper/generated/,
+# and paper/main.pdf. PAPER_ARGS passes options, e.g. PAPER_ARGS="--scenes pipe,blinds".
+paper: $(STAMP)
+	bash scripts/setup_latex.sh
+	$(PY) -m study paper --profile quick $(PAPER_ARGS)
+	@test -s paper/main.pdf || { echo "make paper: paper/main.pdf was not built" >&2; exit 1; }
+	@pdfinfo paper/main.pdf | grep -E '^Pages:' | sed 's/^/paper\/main.pdf: /'
 
 clean-cache:
 	rm -rf .cache/taa-study
