@@ -56,16 +56,6 @@ def border_index(a: int, n: int, mode: str) -> int:
     raise ValueError(f"border mode must be one of {BORDERS}, not {mode!r}")
 
 
-def aligned(a: np.ndarray) -> np.ndarray:
-    """A 64-byte aligned contiguous copy: Dr.Jit marks arrays made from unaligned numpy memory
-    'unaligned' and then splits every packet gather into 8 scalar gathers."""
-    buf = np.empty(a.nbytes + 64, np.uint8)
-    off = -buf.ctypes.data % 64
-    out = buf[off:off + a.nbytes].view(a.dtype)
-    out[:] = a
-    return out
-
-
 @dataclass(frozen=True)
 class Layout:
     h: int
@@ -88,15 +78,20 @@ class Layout:
         return self.h * self.wg
 
     def upload(self, plane: np.ndarray, precision: str):
-        """(H, W) numpy plane -> flat Dr.Jit array in this layout (pad columns repeat the edge)."""
+        """(H, W) numpy plane -> flat Dr.Jit array in this layout (pad columns repeat the edge),
+        written once into a 64-byte aligned buffer: Dr.Jit marks arrays made from unaligned numpy
+        memory and then splits every packet gather into 8 scalar gathers."""
         F, _ = types(precision)
-        dt = np.float32 if precision == "float32" else np.float64
-        a = np.asarray(plane, dt)
-        if a.shape != (self.h, self.w):
-            raise ValueError(f"plane of shape {a.shape}, layout expects {(self.h, self.w)}")
+        dt = np.dtype(np.float32 if precision == "float32" else np.float64)
+        if plane.shape != (self.h, self.w):
+            raise ValueError(f"plane of shape {plane.shape}, layout expects {(self.h, self.w)}")
+        buf = np.empty(self.size * dt.itemsize + 64, np.uint8)
+        off = -buf.ctypes.data % 64
+        out = buf[off:off + self.size * dt.itemsize].view(dt).reshape(self.h, self.wg)
+        out[:, :self.w] = plane
         if self.wg != self.w:
-            a = np.pad(a, ((0, 0), (0, self.wg - self.w)), mode="edge")
-        return F(aligned(a.ravel()))
+            out[:, self.w:] = plane[:, -1:]
+        return F(out.ravel())
 
     def download(self, flat) -> np.ndarray:
         a = flat.numpy().reshape(self.h, self.wg)
@@ -137,6 +132,15 @@ def hpass(lay: Layout, planes: Sequence, quantities: Callable[[list], list], fil
     g, gy, gx = lay.lane_coords()
     row = gy * G
     m_lo, m_hi = (-R) // PACK, (PACK - 1 + R) // PACK
+    # Lane classes whose taps leave [0, W): the first and last few groups of a row.
+    special = sorted({c for c in range(G) if PACK * c - R < 0 or PACK * c + PACK - 1 + R > w - 1})
+    # A reflected tap can land farther than R from the lane (narrow images): load those packets too.
+    for c in special:
+        for u in range(-R, PACK + R):
+            if not 0 <= PACK * c + u < w:
+                for mode in {f.border for f in filters}:
+                    m = (border_index(PACK * c + u, w, mode) - PACK * c) // PACK
+                    m_lo, m_hi = min(m_lo, m), max(m_hi, m)
     pk = {}
     for m in range(m_lo, m_hi + 1):
         idx = row + J.UInt32(dr.clip(J.Int32(gx) + m, 0, G - 1))
@@ -146,8 +150,6 @@ def hpass(lay: Layout, planes: Sequence, quantities: Callable[[list], list], fil
         m, e = u // PACK, u % PACK
         return [v[e] for v in pk[m]]
 
-    # Lane classes whose taps leave [0, W): the first and last few groups of a row.
-    special = sorted({c for c in range(G) if PACK * c - R < 0 or PACK * c + PACK - 1 + R > w - 1})
     qcache: dict[tuple[int, str], list] = {}
 
     def quant(u, mode):

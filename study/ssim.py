@@ -21,6 +21,8 @@ import math
 
 import numpy as np
 
+from backend import dr
+
 from . import jit_filter as jf
 
 SIGMA = 1.5
@@ -63,11 +65,66 @@ def _ssim_formula(ux, uy, uxx, uyy, uxy, c1, c2):
     return ((2.0 * ux * uy + c1) * (2.0 * vxy + c2)) / ((ux * ux + uy * uy + c1) * (vx + vy + c2))
 
 
+def _volume_frame(lay: jf.Layout, planes: list, sigma: float, c1: float, c2: float):
+    """(rows, cols, per-pixel channel sum of the volume SSIM) on the pixels within the filter radius
+    of a border, where 'replicate' and 'reflect' differ: a direct 2-D window per pixel, 'replicate'
+    (clamped) taps, float64."""
+    J = jf.jit()
+    r = matlab_radius(sigma)
+    w = jf.gaussian_weights(sigma, r)
+    mix = channel_mixing(w)
+    h, wd = lay.h, lay.w
+    edge_rows = np.unique(np.r_[0:min(r, h), max(h - r, 0):h])
+    mid_rows = np.arange(min(r, h), max(h - r, min(r, h)))
+    edge_cols = np.unique(np.r_[0:min(r, wd), max(wd - r, 0):wd])
+    ys = np.r_[np.repeat(edge_rows, wd), np.repeat(mid_rows, edge_cols.size)]
+    xs = np.r_[np.tile(np.arange(wd), edge_rows.size), np.tile(edge_cols, mid_rows.size)]
+    y, x = J.Int32(ys.astype(np.int32)), J.Int32(xs.astype(np.int32))
+    acc = [None] * 15
+    for dy in range(-r, r + 1):
+        row = J.UInt32(dr.clip(y + dy, 0, h - 1)) * lay.wg
+        for dx in range(-r, r + 1):
+            idx = row + J.UInt32(dr.clip(x + dx, 0, wd - 1))
+            wt = float(w[dy + r] * w[dx + r])
+            for c in range(3):
+                a = dr.gather(J.Float64, planes[2 * c], idx)
+                b = dr.gather(J.Float64, planes[2 * c + 1], idx)
+                for q, v in enumerate((a, b, a * a, b * b, a * b)):
+                    t = v * wt
+                    k = 5 * c + q
+                    acc[k] = t if acc[k] is None else acc[k] + t
+    tot = _mixed_ssim(acc, mix, c1, c2)
+    return ys, xs, tot.numpy()
+
+
+def _mixed_ssim(v: list, mix: np.ndarray, c1: float, c2: float):
+    """Sum over channels of SSIM after mixing the 15 per-channel statistics across channels."""
+    tot = None
+    for c in range(3):
+        mixed = []
+        for qi in range(5):
+            acc = None
+            for cc in range(3):
+                t = v[5 * cc + qi] * float(mix[c, cc])
+                acc = t if acc is None else acc + t
+            mixed.append(acc)
+        sc = _ssim_formula(*mixed, c1, c2)
+        tot = sc if tot is None else tot + sc
+    return tot
+
+
 def ssim_both(ref8: np.ndarray, x8: np.ndarray, sigma: float = SIGMA, volume: bool = True):
-    """(per-channel mean SSIM, its map (H, W) float64, volume SSIM or None)."""
+    """(per-channel mean SSIM, its map (H, W) float64, volume SSIM or None).
+
+    Both forms use the same 11-tap Gaussian (radius 5 for sigma 1.5 in both rules), so away from the
+    borders their filtered statistics coincide: the Dr.Jit passes compute them once (with
+    scikit-image's reflect borders) and the volume form's 5-pixel frame, where 'replicate' differs,
+    is recomputed directly (`_volume_frame`)."""
     rc = skimage_radius(sigma)
     _check(ref8, x8, rc)
     h, w = ref8.shape[:2]
+    rv = matlab_radius(sigma)
+    shared = volume and rv == rc
     lay = jf.Layout(h, w)
     prec = "float64"
     planes = []
@@ -83,44 +140,27 @@ def ssim_both(ref8: np.ndarray, x8: np.ndarray, sigma: float = SIGMA, volume: bo
 
     wc = tuple(float(t) for t in jf.gaussian_weights(sigma, rc))
     filters = [jf.Filter(i, wc, "reflect") for i in range(15)]
-    if volume:
-        rv = matlab_radius(sigma)
-        wv_np = jf.gaussian_weights(sigma, rv)
-        wv = tuple(float(t) for t in wv_np)
-        mix = channel_mixing(wv_np)
-        filters += [jf.Filter(i, wv, "clamp") for i in range(15)]
+    if volume and not shared:
+        filters += [jf.Filter(i, tuple(float(t) for t in jf.gaussian_weights(sigma, rv)), "clamp")
+                    for i in range(15)]
     hs = jf.hpass(lay, planes, quantities, filters, prec)
-    c1, c2 = (K1 * DATA_RANGE) ** 2, (K2 * DATA_RANGE) ** 2
-
-    def finish(f):
-        s = None
-        for c in range(3):
-            sc = _ssim_formula(*f[5 * c:5 * c + 5], c1, c2)
-            s = sc if s is None else s + sc
-        out = [s * (1.0 / 3.0)]
-        if volume:
-            v = f[15:]
-            tot = None
-            for c in range(3):
-                mixed = []
-                for qi in range(5):
-                    acc = None
-                    for cc in range(3):
-                        if mix[c, cc] != 0:
-                            t = v[5 * cc + qi] * float(mix[c, cc])
-                            acc = t if acc is None else acc + t
-                    mixed.append(acc)
-                sc = _ssim_formula(*mixed, c1, c2)
-                tot = sc if tot is None else tot + sc
-            out.append(tot)
-        return out
-
     vs = jf.vpass(lay, hs, [jf.Filter(i, f.weights, f.border) for i, f in enumerate(filters)], prec)
-    res = finish(vs)
-    smap = lay.download(res[0])
+    del hs
+    c1, c2 = (K1 * DATA_RANGE) ** 2, (K2 * DATA_RANGE) ** 2
+    s = None
+    for c in range(3):
+        sc = _ssim_formula(*vs[5 * c:5 * c + 5], c1, c2)
+        s = sc if s is None else s + sc
+    smap = lay.download(s * (1.0 / 3.0))
     mean = float(smap[rc:h - rc, rc:w - rc].mean(dtype=np.float64))
-    vol = float(lay.download(res[1]).mean(dtype=np.float64) / 3.0) if volume else None
-    return mean, smap, vol
+    if not volume:
+        return mean, smap, None
+    mix = channel_mixing(jf.gaussian_weights(sigma, rv))
+    vmap = lay.download(_mixed_ssim(vs if shared else vs[15:], mix, c1, c2))
+    if shared:
+        ys, xs, vals = _volume_frame(lay, planes, sigma, c1, c2)
+        vmap[ys, xs] = vals
+    return mean, smap, float(vmap.mean(dtype=np.float64) / 3.0)
 
 
 def ssim(ref8: np.ndarray, x8: np.ndarray, sigma: float = SIGMA) -> tuple[float, np.ndarray]:
@@ -129,4 +169,15 @@ def ssim(ref8: np.ndarray, x8: np.ndarray, sigma: float = SIGMA) -> tuple[float,
 
 
 def ssim_volume(ref8: np.ndarray, x8: np.ndarray, sigma: float = SIGMA) -> float:
-    return ssim_both(ref8, x8, sigma, volume=True)[2]
+    """MATLAB's SSIM of two H x W x 3 arrays as volumes; any H, W >= 1 (as MATLAB allows)."""
+    if ref8.shape != x8.shape or ref8.ndim != 3 or ref8.shape[2] != 3 or min(ref8.shape[:2]) < 1:
+        raise ValueError(f"SSIM needs two H x W x 3 images of one shape, got {ref8.shape} and {x8.shape}")
+    if min(ref8.shape[:2]) >= 2 * skimage_radius(sigma) + 1:
+        return ssim_both(ref8, x8, sigma, volume=True)[2]
+    # Smaller than the window: every pixel is a border pixel, computed directly.
+    lay = jf.Layout(*ref8.shape[:2])
+    planes = []
+    for c in range(3):
+        planes += [lay.upload(ref8[..., c], "float64"), lay.upload(x8[..., c], "float64")]
+    _, _, vals = _volume_frame(lay, planes, sigma, (K1 * DATA_RANGE) ** 2, (K2 * DATA_RANGE) ** 2)
+    return float(vals.mean(dtype=np.float64) / 3.0)
