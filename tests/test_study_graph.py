@@ -1,10 +1,11 @@
 """The study as a task graph: the same numbers in-process and on a Dask LocalCluster, a killed
-worker's task run again, and two studies on one cache computing each key once."""
+worker's task run again, and two studies on one cache computing each key once. Clusters run in
+their own processes (as a user would start them), so no event loop outlives a test."""
 import os
 import signal
+import socket
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -12,6 +13,8 @@ import pytest
 
 from study_fixtures import numbers, run_cli, summary, write_scenes
 
+ROOT = Path(__file__).resolve().parent.parent
+BIN = Path(sys.executable).parent
 TECHS = ["--techniques", "taa_baseline", "--techniques", "fxaa", "--techniques", "noaa"]
 
 
@@ -20,53 +23,64 @@ def scenes(tmp_path):
     return write_scenes(tmp_path)
 
 
-def _study(tmp_path, scenes, name, cache, *extra):
-    out = tmp_path / name
-    run_cli(["run", "--scenes", ",".join(scenes), "--out", out, "--no-agreement", *TECHS, *extra], code=0) \
-        if cache is None else None
-    return out
+def _study_cmd(scenes, out, *extra):
+    return [sys.executable, "-m", "study", "run", "--scenes", ",".join(scenes), "--no-agreement", *TECHS,
+            "--out", str(out), *extra]
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
 
 
 def test_local_cluster_gives_the_in_process_numbers_and_survives_a_killed_worker(tmp_path, scenes, monkeypatch):
     monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache_a"))
-    base = ["run", "--scenes", ",".join(scenes), "--no-agreement", *TECHS]
-    run_cli(base + ["--out", tmp_path / "a"])
+    run_cli(["run", "--scenes", ",".join(scenes), "--no-agreement", *TECHS, "--out", tmp_path / "a"])
     s_a = summary(tmp_path / "a")
     assert s_a["runs_computed"] == 3 * 3 + 3 and s_a["executor"] == "in-process"  # 2 statics + 2 ghosting x 3
 
-    monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache_b"))
-    run_cli(base + ["--out", tmp_path / "b", "--workers", "2"])
+    env = {**os.environ, "TAA_STUDY_CACHE": str(tmp_path / "cache_b")}
+    r = subprocess.run(_study_cmd(scenes, tmp_path / "b", "--workers", "2"), env=env, cwd=ROOT,
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "Dask dashboard:" in r.stderr
     s_b = summary(tmp_path / "b")
     assert s_b["executor"].startswith("LocalCluster, 2 worker") and s_b["runs_computed"] == s_a["runs_computed"]
     assert numbers(tmp_path / "b") == numbers(tmp_path / "a")
 
-    # A worker killed while the study runs on a cluster: its task runs again elsewhere.
-    from distributed import Client, LocalCluster
-    monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache_c"))
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster, \
-            Client(cluster) as client:
-        pids = list(client.run(os.getpid).values())
-        killed = []
-
-        def killer():
-            runs = tmp_path / "cache_c" / "runs"
-            deadline = time.time() + 120
-            while time.time() < deadline and not list(runs.glob("*/*/*/done.json")):
-                time.sleep(0.05)
-            os.kill(pids[0], signal.SIGKILL)      # mid-study: some tasks done, others running
-            killed.append(pids[0])
-        th = threading.Thread(target=killer)
-        th.start()
-        run_cli(base + ["--out", tmp_path / "c", "--scheduler", cluster.scheduler_address])
-        th.join()
-    assert killed
+    # A scheduler and two workers; one worker is killed (SIGKILL) once the first run is filed.
+    env = {**os.environ, "TAA_STUDY_CACHE": str(tmp_path / "cache_c")}
+    port = _free_port()
+    addr = f"tcp://127.0.0.1:{port}"
+    procs = [subprocess.Popen([str(BIN / "dask"), "scheduler", "--host", "127.0.0.1", "--port", str(port),
+                               "--dashboard-address", ":0"], env=env, cwd=ROOT,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        workers = [subprocess.Popen([str(BIN / "dask"), "worker", addr, "--nthreads", "1", "--no-nanny",
+                                     "--no-dashboard"], env=env, cwd=ROOT,
+                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for _ in range(2)]
+        procs += workers
+        study = subprocess.Popen(_study_cmd(scenes, tmp_path / "c", "--scheduler", addr), env=env, cwd=ROOT,
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        runs = tmp_path / "cache_c" / "runs"
+        deadline = time.time() + 300
+        while time.time() < deadline and not list(runs.glob("*/*/*/done.json")) and study.poll() is None:
+            time.sleep(0.05)
+        assert study.poll() is None, "the study ended before a worker could be killed"
+        os.kill(workers[0].pid, signal.SIGKILL)     # mid-study: some tasks done, others running
+        out, err = study.communicate(timeout=600)
+        assert study.returncode == 0, err[-3000:]
+    finally:
+        for p in procs:
+            p.kill()
+            p.wait()
     assert numbers(tmp_path / "c") == numbers(tmp_path / "a")
 
 
 def test_two_concurrent_studies_on_one_cache_compute_each_key_once(tmp_path, scenes):
     env = {**os.environ, "TAA_STUDY_CACHE": str(tmp_path / "cache")}
-    cmd = [sys.executable, "-m", "study", "run", "--scenes", ",".join(scenes), "--no-agreement", *TECHS]
-    procs = [subprocess.Popen(cmd + ["--out", str(tmp_path / f"s{i}")], env=env, cwd=Path(__file__).parent.parent,
+    procs = [subprocess.Popen(_study_cmd(scenes, tmp_path / f"s{i}"), env=env, cwd=ROOT,
                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT) for i in range(2)]
     outs = [p.communicate(timeout=600)[0].decode() for p in procs]
     assert all(p.returncode == 0 for p in procs), outs
