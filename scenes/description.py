@@ -51,8 +51,10 @@ class CameraCut(_Strict):
 
 
 class Camera(_Strict):
-    position: Vec3
-    target: Vec3
+    # position/target may be left out only when a glTF object supplies its camera (camera = true);
+    # then every field set here overrides the glTF camera's.
+    position: Optional[Vec3] = None
+    target: Optional[Vec3] = None
     up: Vec3 = (0.0, 1.0, 0.0)
     yfov_deg: float = Field(45.0, gt=0, lt=180)
     near: float = Field(0.1, gt=0)
@@ -65,7 +67,8 @@ class Camera(_Strict):
     def _check(self):
         if self.far <= self.near:
             raise ValueError(f"far ({self.far}) must be greater than near ({self.near})")
-        _check_view(self.position, self.target)
+        if self.position is not None and self.target is not None:
+            _check_view(self.position, self.target)
         return self
 
     _up = field_validator("up")(_nonzero)
@@ -101,13 +104,16 @@ class Material(_Strict):
 
 
 class MeshSpec(_Strict):
-    kind: Literal["box", "plane", "sphere", "cylinder", "file", "arrays"]
+    kind: Literal["box", "plane", "sphere", "cylinder", "file", "arrays", "gltf"]
     size: Vec3 = (1.0, 1.0, 1.0)          # box extents; plane uses x, y; cylinder radius=x, height=y
     radius: float = Field(0.5, gt=0)      # sphere
     segments: int = Field(32, ge=3)       # sphere / cylinder tessellation
     uv_scale: tuple[float, float] = (1.0, 1.0)
     smooth: bool = False                  # interpolated vertex normals (sphere, cylinder, files)
-    path: Optional[str] = None            # file: OBJ / PLY / glTF
+    path: Optional[str] = None            # file: OBJ / PLY / glTF as one mesh; gltf: the whole file
+    # gltf: its first camera is the scene's (scenes/gltf.py). Left out of dumps: a gltf mesh is
+    # expanded before anything is hashed, and other kinds' hashes stay as they were.
+    camera: bool = Field(False, exclude=True)
     # arrays: built in code; vertices (V,3), faces (F,3), optional uvs (V,2), normals (V,3)
     vertices: Optional[np.ndarray] = Field(None, exclude=True)
     faces: Optional[np.ndarray] = Field(None, exclude=True)
@@ -116,8 +122,10 @@ class MeshSpec(_Strict):
 
     @model_validator(mode="after")
     def _check(self):
-        if self.kind == "file" and not self.path:
-            raise ValueError("kind 'file' needs a 'path'")
+        if self.kind in ("file", "gltf") and not self.path:
+            raise ValueError(f"kind {self.kind!r} needs a 'path'")
+        if self.camera and self.kind != "gltf":
+            raise ValueError("'camera' applies to kind 'gltf' only")
         if self.kind == "arrays" and (self.vertices is None or self.faces is None):
             raise ValueError("kind 'arrays' needs 'vertices' and 'faces'")
         return self
@@ -154,6 +162,12 @@ class SceneObject(_Strict):
     transform: Transform = Transform()
     motion: Motion = Motion()
 
+    @model_validator(mode="after")
+    def _check(self):
+        if self.mesh.kind == "gltf" and "material" in self.model_fields_set:
+            raise ValueError("a glTF object takes its materials from the file; remove 'material'")
+        return self
+
 
 class DirectionalLight(_Strict):
     type: Literal["directional"] = "directional"
@@ -184,7 +198,7 @@ class Scene(_Strict):
     transport: Literal[TRANSPORTS] = "direct"
     frames: int = Field(1, ge=1)
     resolution: Resolution = Resolution()
-    camera: Camera
+    camera: Optional[Camera] = None       # may be left out when a glTF object supplies one
     objects: tuple[SceneObject, ...]
     lights: tuple[Light, ...] = ()
     ambient: RGB = (0.0, 0.0, 0.0)
@@ -208,6 +222,12 @@ class Scene(_Strict):
     def _check(self):
         if self.transport != "unlit" and not self.lights and not any(self.ambient):
             raise ValueError(f"transport {self.transport!r} needs lights or an ambient term")
+        gltf_cams = [o.name for o in self.objects if o.mesh.kind == "gltf" and o.mesh.camera]
+        if len(gltf_cams) > 1:
+            raise ValueError(f"objects {gltf_cams} all set camera = true; at most one may")
+        c = self.camera
+        if not gltf_cams and (c is None or c.position is None or c.target is None):
+            raise ValueError("camera needs a position and a target (or a glTF object with camera = true)")
         return self
 
     def features(self) -> list[str]:
@@ -221,7 +241,7 @@ class Scene(_Strict):
             f.append("shadows")
         if any(any(o.motion.velocity) or o.motion.spin_deg for o in self.objects):
             f.append("moving_object")
-        c = self.camera
+        c = self.camera or Camera()
         if any(c.velocity) or any(c.target_velocity):
             f.append("moving_camera")
         if c.cuts:

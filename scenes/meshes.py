@@ -157,6 +157,8 @@ def build(spec: MeshSpec, where: str, base_dir: str | None = None) -> MeshData:
         m = sphere(spec.radius, spec.segments, spec.smooth, spec.uv_scale)
     elif k == "cylinder":
         m = cylinder(spec.size[0], spec.size[1], spec.segments, spec.smooth, spec.uv_scale)
+    elif k == "gltf":
+        raise SceneError(f"{where}: a 'gltf' mesh is a whole scene; ResolvedScene expands it into objects")
     elif k == "file":
         m = load_file(spec.path, spec.smooth, base_dir, where)
         where = f"{where} (file {spec.path})"

@@ -11,7 +11,7 @@ import numpy as np
 
 from . import meshes
 from .camera import CameraState, look_at
-from .description import Scene, Texture
+from .description import Camera, Scene, Texture
 from .meshes import MeshData, SceneError
 
 PROFILES = ("quick", "full")
@@ -63,23 +63,92 @@ class ResolvedScene:
     meshes: list[MeshData] = field(init=False)
     textures: list[np.ndarray | None] = field(init=False)   # albedo texture per object
     alphas: list[np.ndarray | None] = field(init=False)     # alpha texture per object (H, W)
+    # sha256 of asset files hashed as files (glTF and the buffers and images it names)
+    asset_digests: list[str] = field(init=False)
 
     def __post_init__(self):
-        self.meshes, self.textures, self.alphas = [], [], []
+        self.meshes, self.textures, self.alphas, self.asset_digests = [], [], [], []
         pre = f"{self.source}: " if self.source else ""
+        prebuilt = self._expand_gltf(pre)
+        # One array per texture description: objects that share one (a glTF material used by
+        # several primitives) share the decoded data.
+        built: dict[int, np.ndarray] = {}
+
+        def tex(t: Texture, where: str, alpha: bool) -> np.ndarray:
+            if id(t) not in built:
+                a = build_texture(t, where, self.base_dir)
+                built[id(t)] = a.mean(axis=-1) if alpha else a
+            return built[id(t)]
+
         for i, obj in enumerate(self.desc.objects):
             where = f"{pre}objects[{i}] ({obj.name!r})"
-            m = meshes.build(obj.mesh, f"{where}.mesh", self.base_dir)
+            m = prebuilt[i] if i in prebuilt else meshes.build(obj.mesh, f"{where}.mesh", self.base_dir)
             mat = obj.material
             if (mat.texture is not None or mat.alpha is not None) and m.uvs is None:
                 raise SceneError(f"{where}.material: a texture needs UVs but the mesh has none")
             self.meshes.append(m)
             self.textures.append(None if mat.texture is None else
-                                 build_texture(mat.texture, f"{where}.material.texture", self.base_dir))
-            alpha = None if mat.alpha is None else \
-                build_texture(mat.alpha, f"{where}.material.alpha", self.base_dir)
-            self.alphas.append(None if alpha is None else alpha.mean(axis=-1))
+                                 tex(mat.texture, f"{where}.material.texture", False))
+            self.alphas.append(None if mat.alpha is None else tex(mat.alpha, f"{where}.material.alpha", True))
         self._check_animation(pre)
+
+    def _expand_gltf(self, pre: str) -> dict[int, MeshData]:
+        """Replace every glTF object of the description by its primitives (scenes/gltf.py), and
+        take its camera if asked to. Returns the already built meshes by new object index."""
+        if not any(o.mesh.kind == "gltf" for o in self.desc.objects):
+            return {}
+        from . import gltf
+        objects, prebuilt, cam, cam_pose, cam_verts = [], {}, None, None, []
+        for i, obj in enumerate(self.desc.objects):
+            if obj.mesh.kind != "gltf":
+                objects.append(obj)
+                continue
+            g = gltf.read(obj, self.base_dir, f"{pre}objects[{i}] ({obj.name!r}).mesh")
+            for o, m in zip(g.objects, g.meshes):
+                prebuilt[len(objects)] = m
+                objects.append(o)
+            self.asset_digests += g.digests
+            if g.camera is not None:
+                cam, cam_pose = g.camera, self._base_pose(obj)
+                cam_verts = [m.vertices for m in g.meshes]
+        update: dict = {"objects": tuple(objects)}
+        if cam is not None:
+            update["camera"] = self._gltf_camera(cam, cam_pose, cam_verts, pre)
+        try:
+            self.desc = Scene.model_validate({**{k: getattr(self.desc, k) for k in type(self.desc).model_fields},
+                                              **update})
+        except ValueError as exc:   # e.g. an expanded object's name collides with another object
+            raise SceneError(f"{pre}after expanding the glTF objects: {exc}") from None
+        return prebuilt
+
+    @staticmethod
+    def _base_pose(obj) -> np.ndarray:
+        m = np.eye(4)
+        m[:3, :3] = _rotation(obj.transform.rotate_axis, obj.transform.rotate_deg) * \
+            np.asarray(obj.transform.scale, float)
+        m[:3, 3] = obj.transform.translate
+        return m
+
+    def _gltf_camera(self, cam: dict, pose: np.ndarray, verts: list[np.ndarray], pre: str) -> Camera:
+        """The glTF camera under its object's transform; fields the scene file sets win."""
+        pos = pose[:3, :3] @ cam["position"] + pose[:3, 3]
+        fields = {"position": tuple(pos), "target": tuple(pose[:3, :3] @ cam["target"] + pose[:3, 3]),
+                  "up": tuple(pose[:3, :3] @ cam["up"]), "yfov_deg": cam["yfov_deg"], "near": cam["near"]}
+        if "far" in cam:
+            fields["far"] = cam["far"]
+        else:
+            # An infinite projection: far just beyond the glTF's farthest bounding-box corner.
+            world = np.concatenate(verts) @ pose[:3, :3].T + pose[:3, 3]
+            lo, hi = world.min(axis=0), world.max(axis=0)
+            corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+            fields["far"] = float(max(np.linalg.norm(corners - pos, axis=1).max() * 1.01, 2 * cam["near"]))
+        given = self.desc.camera
+        if given is not None:
+            fields.update({k: getattr(given, k) for k in given.model_fields_set})
+        try:
+            return Camera.model_validate(fields)
+        except ValueError as exc:
+            raise SceneError(f"{pre}camera (the glTF camera with the scene file's fields): {exc}") from None
 
     def _check_animation(self, pre: str) -> None:
         """Every frame must have a camera and finite object positions. The description validates
@@ -169,4 +238,6 @@ class ResolvedScene:
                 parts = (a.vertices, a.faces, a.uvs, a.normals) if isinstance(a, MeshData) else (a,)
                 for p in parts:
                     h.update(b"-" if p is None else np.ascontiguousarray(p).tobytes())
+        for d in self.asset_digests:   # none without glTF objects: other scenes keep their hash
+            h.update(d.encode())
         return h.hexdigest()[:16]

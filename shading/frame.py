@@ -41,13 +41,18 @@ class FrameGeometry:
 
 def _texture_table(textures, channels):
     offsets, data, pos = [0, 0, 0], [], 0  # entry 0: background
+    stored: dict[int, list[int]] = {}      # objects sharing one array (glTF materials) share its texels
     for tex in textures:
         if tex is None:
             offsets += [0, 0, 0]
             continue
+        if id(tex) in stored:
+            offsets += stored[id(tex)]
+            continue
         t = np.asarray(tex, np.float32)
         t = t.reshape(t.shape[0], t.shape[1], -1)[..., :channels]
-        offsets += [pos, t.shape[1], t.shape[0]]
+        stored[id(tex)] = [pos, t.shape[1], t.shape[0]]
+        offsets += stored[id(tex)]
         data.append(t.ravel())
         pos += t.size // channels
     flat = np.concatenate(data) if data else np.zeros(channels, np.float32)

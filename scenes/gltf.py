@@ -1,0 +1,497 @@
+"""Whole glTF 2.0 scenes (.gltf / .glb), expanded at load time into ordinary scene objects.
+
+An object with `mesh = { kind = "gltf", path = "...", camera = true }` becomes one scene object per
+mesh primitive of the file's default scene, each with its node's world matrix baked into its
+vertices and its own material (baseColorFactor, the sRGB baseColorTexture on its TEXCOORD_n,
+alphaMode MASK / alphaCutoff as the cut-out, emissiveFactor). The object's own transform and motion
+apply on top, to the whole file. With `camera = true` the first perspective camera placed in the
+scene supplies the view, field by field where the scene file's [camera] does not set it.
+
+The container is read here rather than through trimesh's glTF importer, which reads TEXCOORD_0 for
+every texture, ignores accessors' `normalized` flag and sparse storage, and places a camera by its
+own node's matrix only. Everything the shading cannot represent is collected and reported once.
+"""
+from __future__ import annotations
+
+import base64
+import hashlib
+import io
+import json
+import os
+import struct
+import urllib.parse
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .description import Material, MeshSpec, SceneObject, Texture
+from .meshes import MeshData, SceneError, SceneWarning
+
+_COMPONENT = {5120: "i1", 5121: "u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
+_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
+# Dividers of the glTF spec's normalised integers (signed ones clamp at -1).
+_NORM = {5120: 127.0, 5121: 255.0, 5122: 32767.0, 5123: 65535.0}
+_MODES = {0: "POINTS", 1: "LINES", 2: "LINE_LOOP", 3: "LINE_STRIP"}
+_WRAP = {33071: "CLAMP_TO_EDGE", 33648: "MIRRORED_REPEAT"}
+_LINEAR = {9729, 9985, 9986, 9987}
+# Extensions whose content is read, or which change nothing the study renders.
+SUPPORTED_EXTENSIONS = {"KHR_mesh_quantization", "KHR_materials_emissive_strength", "EXT_texture_webp"}
+
+
+class _Malformed(Exception):
+    """A structural problem; `where` is the JSON path inside the glTF file."""
+
+    def __init__(self, where: str, msg: str):
+        super().__init__(f"{where}: {msg}")
+
+
+@dataclass
+class Expanded:
+    objects: list[SceneObject]
+    meshes: list[MeshData]
+    camera: dict | None                 # Camera fields in the glTF's world (before the object transform)
+    digests: list[str] = field(default_factory=list)   # sha256 of the file and every file it names
+    unsupported: set[str] = field(default_factory=set)
+
+
+class _Container:
+    """The JSON and the binary buffers of one glTF file."""
+
+    def __init__(self, full: str):
+        self.full, self.dir = full, os.path.dirname(full)
+        self.digests: list[str] = []
+        with open(full, "rb") as fh:
+            raw = fh.read()
+        self.digests.append(hashlib.sha256(raw).hexdigest())
+        bin_chunk = None
+        if raw[:4] == b"glTF":
+            self.json, bin_chunk = self._glb(raw)
+        else:
+            try:
+                self.json = json.loads(raw.decode("utf-8-sig"))
+            except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+                raise _Malformed("(file)", f"neither a GLB nor glTF JSON: {exc}") from None
+        if not isinstance(self.json, dict):
+            raise _Malformed("(top level)", "the JSON is not an object")
+        version = str(self.json.get("asset", {}).get("version", ""))
+        if not version.startswith("2."):
+            raise _Malformed("asset.version", f"only glTF 2.x is supported, got {version!r}")
+        self.buffers = []
+        for i, b in enumerate(self.json.get("buffers", [])):
+            if "uri" in b:
+                data = self.uri_bytes(b["uri"], f"buffers[{i}].uri")
+            elif i == 0 and bin_chunk is not None:
+                data = bin_chunk
+            else:
+                raise _Malformed(f"buffers[{i}]", "has no uri and is not the GLB's binary chunk")
+            if len(data) < b.get("byteLength", 0):
+                raise _Malformed(f"buffers[{i}]", f"byteLength {b['byteLength']} but {len(data)} bytes")
+            self.buffers.append(data)
+
+    @staticmethod
+    def _glb(raw: bytes):
+        if len(raw) < 20:
+            raise _Malformed("(GLB header)", f"file of {len(raw)} bytes is truncated")
+        _, version, length = struct.unpack_from("<4sII", raw)
+        if version != 2:
+            raise _Malformed("(GLB header)", f"GLB version {version}, only 2 is supported")
+        if length > len(raw):
+            raise _Malformed("(GLB header)", f"declares {length} bytes, the file has {len(raw)}")
+        pos, doc, binary = 12, None, None
+        while pos + 8 <= length:
+            size, kind = struct.unpack_from("<II", raw, pos)
+            body = raw[pos + 8:pos + 8 + size]
+            if len(body) != size:
+                raise _Malformed("(GLB chunk)", f"chunk at byte {pos} is truncated")
+            if kind == 0x4E4F534A and doc is None:
+                try:
+                    doc = json.loads(body.decode("utf-8"))
+                except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+                    raise _Malformed("(GLB JSON chunk)", f"cannot parse: {exc}") from None
+            elif kind == 0x004E4942 and binary is None:
+                binary = body
+            pos += 8 + size + (-size % 4)
+        if doc is None:
+            raise _Malformed("(GLB)", "has no JSON chunk")
+        return doc, binary
+
+    def uri_bytes(self, uri: str, where: str) -> bytes:
+        if uri.startswith("data:"):
+            head, _, payload = uri.partition(",")
+            try:
+                return base64.b64decode(payload, validate=True) if head.endswith(";base64") \
+                    else urllib.parse.unquote_to_bytes(payload)
+            except ValueError as exc:
+                raise _Malformed(where, f"bad data URI: {exc}") from None
+        path = os.path.join(self.dir, urllib.parse.unquote(uri))
+        if not os.path.isfile(path):
+            raise _Malformed(where, f"file not found: {path}")
+        with open(path, "rb") as fh:
+            data = fh.read()
+        self.digests.append(hashlib.sha256(data).hexdigest())
+        return data
+
+    def item(self, kind: str, index, where: str) -> dict:
+        items = self.json.get(kind, [])
+        if not isinstance(index, int) or not 0 <= index < len(items):
+            raise _Malformed(where, f"{kind} index {index!r} out of range (the file has {len(items)})")
+        return items[index]
+
+    def view(self, index: int, where: str) -> tuple[bytes, int | None]:
+        v = self.item("bufferViews", index, where)
+        self.item("buffers", v["buffer"], f"bufferViews[{index}].buffer")
+        buf = self.buffers[v["buffer"]]
+        start, length = v.get("byteOffset", 0), v["byteLength"]
+        if start + length > len(buf):
+            raise _Malformed(f"bufferViews[{index}]", f"bytes {start}..{start + length} past the end "
+                             f"of buffer {v['buffer']} ({len(buf)} bytes)")
+        return buf[start:start + length], v.get("byteStride")
+
+    def _read(self, view: int, offset: int, count: int, comp: int, width: int, where: str) -> np.ndarray:
+        if comp not in _COMPONENT:
+            raise _Malformed(where, f"componentType {comp} is not a glTF component type")
+        dt = np.dtype(_COMPONENT[comp])
+        data, stride = self.view(view, where)
+        stride = stride or dt.itemsize * width
+        need = offset + (count - 1) * stride + dt.itemsize * width if count else 0
+        if need > len(data):
+            raise _Malformed(where, f"{count} elements need {need} bytes of bufferView {view}, "
+                             f"which has {len(data)}")
+        if count == 0:
+            return np.zeros((0, width), dt)
+        return np.ndarray((count, width), dt, data, offset, (stride, dt.itemsize)).copy()
+
+    def accessor(self, index, where: str, widths: tuple[int, ...]) -> np.ndarray:
+        """(count, width) array; normalised integers become floats as the spec defines them."""
+        a = self.item("accessors", index, where)
+        where = f"accessors[{index}]"
+        width = _WIDTH.get(a.get("type"))
+        if width not in widths:
+            raise _Malformed(where, f"type {a.get('type')!r} where {widths} components are expected")
+        comp, count = a["componentType"], a["count"]
+        if "bufferView" in a:
+            out = self._read(a["bufferView"], a.get("byteOffset", 0), count, comp, width, where)
+        else:
+            out = np.zeros((count, width), np.dtype(_COMPONENT.get(comp, "<f4")))
+        if "sparse" in a:
+            s = a["sparse"]
+            idx = self._read(s["indices"]["bufferView"], s["indices"].get("byteOffset", 0), s["count"],
+                             s["indices"]["componentType"], 1, f"{where}.sparse.indices")[:, 0]
+            if len(idx) and idx.max() >= count:
+                raise _Malformed(f"{where}.sparse.indices", f"index {int(idx.max())} >= count {count}")
+            out[idx.astype(np.int64)] = self._read(s["values"]["bufferView"], s["values"].get("byteOffset", 0),
+                                                   s["count"], comp, width, f"{where}.sparse.values")
+        if a.get("normalized") and comp in _NORM:
+            return np.maximum(out.astype(np.float64) / _NORM[comp], -1.0)
+        return out
+
+    def image_rgba(self, index: int, where: str) -> np.ndarray:
+        from PIL import Image
+        img = self.item("images", index, where)
+        where = f"images[{index}]"
+        if "uri" in img:
+            data = self.uri_bytes(img["uri"], f"{where}.uri")
+        elif "bufferView" in img:
+            data = self.view(img["bufferView"], f"{where}.bufferView")[0]
+        else:
+            raise _Malformed(where, "has neither uri nor bufferView")
+        try:
+            with Image.open(io.BytesIO(data)) as im:
+                return np.asarray(im.convert("RGBA"))
+        except Exception as exc:   # Pillow raises several types for undecodable data
+            raise _Malformed(where, f"cannot decode the image: {exc}") from None
+
+
+def _node_matrix(node: dict, where: str) -> np.ndarray:
+    if "matrix" in node:
+        m = np.asarray(node["matrix"], float)
+        if m.shape != (16,):
+            raise _Malformed(f"{where}.matrix", f"needs 16 numbers, got {m.size}")
+        m = m.reshape(4, 4).T                      # stored column-major
+    else:
+        from scipy.spatial.transform import Rotation
+        m = np.eye(4)
+        q = np.asarray(node.get("rotation", (0.0, 0.0, 0.0, 1.0)), float)   # x, y, z, w
+        if q.shape != (4,) or not np.all(np.isfinite(q)) or not np.linalg.norm(q):
+            raise _Malformed(f"{where}.rotation", f"not a quaternion: {node.get('rotation')}")
+        m[:3, :3] = Rotation.from_quat(q).as_matrix() * np.asarray(node.get("scale", (1.0, 1.0, 1.0)), float)
+        m[:3, 3] = node.get("translation", (0.0, 0.0, 0.0))
+    if not np.all(np.isfinite(m)):
+        raise _Malformed(where, "transform is not finite")
+    return m
+
+
+def _walk(c: _Container) -> list[tuple[int, np.ndarray]]:
+    """(node index, world matrix) for every node of the default scene, depth first."""
+    nodes = c.json.get("nodes", [])
+    if c.json.get("scenes"):
+        s = c.json.get("scene", 0)
+        roots = c.item("scenes", s, "scene").get("nodes", [])
+    else:   # no scene: every node that is nobody's child
+        children = {k for n in nodes for k in n.get("children", [])}
+        roots = [i for i in range(len(nodes)) if i not in children]
+    out, seen = [], set()
+    stack = [(r, np.eye(4), "scenes.nodes") for r in reversed(roots)]
+    while stack:
+        i, parent, via = stack.pop()
+        node = c.item("nodes", i, via)
+        if i in seen:
+            raise _Malformed(f"nodes[{i}]", "reached twice: the node hierarchy is not a tree")
+        seen.add(i)
+        world = parent @ _node_matrix(node, f"nodes[{i}]")
+        out.append((i, world))
+        stack += [(k, world, f"nodes[{i}].children") for k in reversed(node.get("children", []))]
+    return out
+
+
+def _faces(c: _Container, p: dict, n_vertices: int, where: str) -> np.ndarray | None:
+    mode = p.get("mode", 4)
+    if "indices" in p:
+        idx = c.accessor(p["indices"], f"{where}.indices", (1,))[:, 0].astype(np.int64)
+    else:
+        idx = np.arange(n_vertices, dtype=np.int64)
+    if mode == 4:
+        return idx[:len(idx) - len(idx) % 3].reshape(-1, 3)
+    k = np.arange(max(len(idx) - 2, 0))
+    if mode == 5:   # strip: odd triangles swap their first two vertices to keep the winding
+        return np.stack([idx[k + (k % 2)], idx[k + 1 - (k % 2)], idx[k + 2]], 1)
+    if mode == 6:   # fan around the first vertex
+        return np.stack([idx[k + 1], idx[k + 2], np.full_like(k, idx[0])], 1)
+    return None
+
+
+class _Materials:
+    """Scene materials per glTF material index, with decoded textures shared between users."""
+
+    def __init__(self, c: _Container, unsupported: set[str]):
+        self.c, self.unsupported = c, unsupported
+        self._rgb: dict[int, np.ndarray] = {}
+        self._alpha: dict[int, np.ndarray] = {}
+        self._made: dict = {}
+
+    def _image(self, tex_index: int, where: str) -> int:
+        import colour
+        t = self.c.item("textures", tex_index, where)
+        src = t.get("source", t.get("extensions", {}).get("EXT_texture_webp", {}).get("source"))
+        if src is None:
+            raise _Malformed(f"textures[{tex_index}]", "has no image source this loader can read "
+                             f"(extensions: {sorted(t.get('extensions', {}))})")
+        if "sampler" in t:
+            s = self.c.item("samplers", t["sampler"], f"textures[{tex_index}].sampler")
+            for key in ("wrapS", "wrapT"):
+                if s.get(key) in _WRAP:
+                    self.unsupported.add(f"sampler {key} {_WRAP[s[key]]} (textures repeat)")
+            if {s.get("magFilter"), s.get("minFilter")} & _LINEAR:
+                self.unsupported.add("linear/mipmap texture filtering (textures are sampled nearest-texel)")
+        if src not in self._rgb:
+            rgba = self.c.image_rgba(src, f"textures[{tex_index}].source")[::-1]   # row 0 = v 0
+            lin = colour.cctf_decoding(rgba[..., :3].astype(np.float32) / 255.0, function="sRGB")
+            self._rgb[src] = np.ascontiguousarray(lin, np.float32)
+            self._alpha[src] = np.ascontiguousarray(rgba[..., 3], np.float32) / np.float32(255.0)
+        return src
+
+    def get(self, index: int | None, where: str) -> tuple[Material | None, int | None]:
+        """(material, texcoord set) for a glTF material index; material None = cut out entirely."""
+        if index in self._made:
+            return self._made[index]
+        if index is None:
+            made = (Material(albedo=(1.0, 1.0, 1.0)), None)   # the spec's default material
+            self._made[index] = made
+            return made
+        m = self.c.item("materials", index, where)
+        where = f"materials[{index}]"
+        pbr = m.get("pbrMetallicRoughness", {})
+        factor = np.asarray(pbr.get("baseColorFactor", (1.0, 1.0, 1.0, 1.0)), float)
+        if factor.shape != (4,) or not np.all(np.isfinite(factor)) or factor.min() < 0:
+            raise _Malformed(f"{where}.pbrMetallicRoughness.baseColorFactor",
+                             f"needs 4 finite numbers >= 0, got {pbr.get('baseColorFactor')}")
+        emissive = np.asarray(m.get("emissiveFactor", (0.0, 0.0, 0.0)), float) * \
+            m.get("extensions", {}).get("KHR_materials_emissive_strength", {}).get("emissiveStrength", 1.0)
+        if emissive.shape != (3,) or not np.all(np.isfinite(emissive)) or emissive.min() < 0:
+            raise _Malformed(f"{where}.emissiveFactor", f"needs 3 finite numbers >= 0, got {m.get('emissiveFactor')}")
+        for key in ("normalTexture", "occlusionTexture", "emissiveTexture"):
+            if key in m:
+                self.unsupported.add(key)
+        if "metallicRoughnessTexture" in pbr:
+            self.unsupported.add("metallicRoughnessTexture")
+        if pbr.get("metallicFactor", 1.0) > 0:   # the spec's default is fully metallic
+            self.unsupported.add("metallicFactor > 0 (shaded as Lambert)")
+        for ext in m.get("extensions", {}):
+            if ext not in SUPPORTED_EXTENSIONS:
+                self.unsupported.add(ext)
+
+        mode = m.get("alphaMode", "OPAQUE")
+        if mode not in ("OPAQUE", "MASK", "BLEND"):
+            raise _Malformed(f"{where}.alphaMode", f"must be OPAQUE, MASK or BLEND, got {mode!r}")
+        cutoff = float(m.get("alphaCutoff", 0.5))
+        if mode == "BLEND":
+            self.unsupported.add("alphaMode BLEND (cut out as MASK at 0.5)")
+            cutoff = 0.5
+        if not np.isfinite(cutoff):
+            raise _Malformed(f"{where}.alphaCutoff", f"must be finite, got {cutoff}")
+
+        texture = alpha = None
+        texcoord = None
+        tinfo = pbr.get("baseColorTexture")
+        if tinfo is not None:
+            src = self._image(tinfo["index"], f"{where}.pbrMetallicRoughness.baseColorTexture.index")
+            texcoord = int(tinfo.get("texCoord", 0))
+            texture = Texture(kind="array", data=self._rgb[src])
+            for ext in tinfo.get("extensions", {}):
+                self.unsupported.add(ext)
+        if mode != "OPAQUE" and cutoff > 0:
+            if texture is None:
+                # A constant alpha keeps all or nothing.
+                if factor[3] < cutoff:
+                    self.unsupported.add("primitives cut out entirely by their alpha (omitted)")
+                    self._made[index] = (None, None)
+                    return self._made[index]
+            elif cutoff > 1 or factor[3] * self._alpha[src].max() < cutoff:
+                self.unsupported.add("primitives cut out entirely by their alpha (omitted)")
+                self._made[index] = (None, None)
+                return self._made[index]
+            elif factor[3] * self._alpha[src].min() < cutoff:
+                alpha = Texture(kind="array", data=self._alpha[src] * np.float32(factor[3]))
+        mat = Material(albedo=tuple(factor[:3]), emission=tuple(emissive), texture=texture, alpha=alpha,
+                       alpha_threshold=min(cutoff, 1.0) if alpha is not None else 0.5)
+        self._made[index] = (mat, texcoord)
+        return self._made[index]
+
+
+def _camera(c: _Container, placed: list[tuple[int, np.ndarray]]) -> dict:
+    """Camera fields of the lowest-numbered camera that a node of the scene places."""
+    nodes = c.json.get("nodes", [])
+    users = [(nodes[i]["camera"], i, m) for i, m in placed if "camera" in nodes[i]]
+    if not users:
+        raise _Malformed("cameras", "camera = true, but no node of the scene places a camera")
+    index, node, world = min(users, key=lambda u: u[0])
+    cam = c.item("cameras", index, f"nodes[{node}].camera")
+    where = f"cameras[{index}]"
+    if cam.get("type") != "perspective":
+        raise _Malformed(f"{where}.type", f"only perspective cameras are supported, got {cam.get('type')!r}")
+    p = cam.get("perspective", {})
+    yfov, znear = p.get("yfov"), p.get("znear")
+    if not isinstance(yfov, (int, float)) or not 0 < yfov < np.pi:
+        raise _Malformed(f"{where}.perspective.yfov", f"must be in (0, pi) radians, got {yfov!r}")
+    if not isinstance(znear, (int, float)) or not znear > 0:
+        raise _Malformed(f"{where}.perspective.znear", f"must be > 0, got {znear!r}")
+    # The camera looks down its node's -z with +y up.
+    pos = world[:3, 3]
+    fwd, up = world[:3, :3] @ (0.0, 0.0, -1.0), world[:3, :3] @ (0.0, 1.0, 0.0)
+    if not np.linalg.norm(fwd) or not np.linalg.norm(up):
+        raise _Malformed(f"nodes[{node}]", "the camera node's transform collapses the view direction")
+    out = {"position": pos, "target": pos + fwd / np.linalg.norm(fwd), "up": up / np.linalg.norm(up),
+           "yfov_deg": float(np.degrees(yfov)), "near": float(znear)}
+    if p.get("zfar") is not None:
+        out["far"] = float(p["zfar"])
+    return out
+
+
+def _unit_normals(n: np.ndarray) -> np.ndarray | None:
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    if not np.all(np.isfinite(n)) or not np.all(length > 0):
+        return None
+    return n / length
+
+
+def read(obj: SceneObject, base_dir: str | None, where: str) -> Expanded:
+    """The scene objects, meshes and (if asked for) the camera of one glTF object."""
+    spec = obj.mesh
+    full = spec.path if os.path.isabs(spec.path) or base_dir is None else os.path.join(base_dir, spec.path)
+    if not os.path.isfile(full):
+        raise SceneError(f"{where}: glTF file not found: {full}")
+    try:
+        return _read(obj, full, where)
+    except _Malformed as exc:
+        raise SceneError(f"{where}: glTF file {full}: {exc}") from None
+    except (KeyError, IndexError, TypeError, ValueError, AttributeError) as exc:
+        # A field of the wrong JSON type or a missing required key deep inside the file.
+        raise SceneError(f"{where}: glTF file {full} is malformed: {type(exc).__name__}: {exc}") from None
+
+
+def _read(obj: SceneObject, full: str, where: str) -> Expanded:
+    c = _Container(full)
+    unsupported: set[str] = set()
+    required = set(c.json.get("extensionsRequired", [])) - SUPPORTED_EXTENSIONS
+    if required:
+        raise _Malformed("extensionsRequired", f"needs {sorted(required)}, which this loader cannot read")
+    unsupported |= set(c.json.get("extensionsUsed", [])) - SUPPORTED_EXTENSIONS
+    for key, what in (("animations", "animations (use the scene file's motion)"), ("skins", "skins")):
+        if c.json.get(key):
+            unsupported.add(what)
+    materials = _Materials(c, unsupported)
+    placed = _walk(c)
+    out = Expanded([], [], None, unsupported=unsupported)
+    for ni, world in placed:
+        node = c.json["nodes"][ni]
+        if "mesh" not in node:
+            continue
+        if "skin" in node:
+            unsupported.add("skins")
+        mesh = c.item("meshes", node["mesh"], f"nodes[{ni}].mesh")
+        label = f"{obj.name}:{node.get('name', 'node')}#{ni}"
+        det = np.linalg.det(world[:3, :3])
+        if not det:
+            raise _Malformed(f"nodes[{ni}]", "world transform is singular (flattens its mesh)")
+        for pi, p in enumerate(mesh["primitives"]):
+            pwhere = f"meshes[{node['mesh']}].primitives[{pi}]"
+            attr = p["attributes"]
+            if "targets" in p:
+                unsupported.add("morph targets")
+            if any(k.startswith("COLOR_") for k in attr):
+                unsupported.add("COLOR_0 vertex colours")
+            if "POSITION" not in attr:
+                raise _Malformed(f"{pwhere}.attributes", "has no POSITION")
+            pos = c.accessor(attr["POSITION"], f"{pwhere}.attributes.POSITION", (3,)).astype(np.float64)
+            faces = _faces(c, p, len(pos), pwhere)
+            if faces is None:
+                unsupported.add(f"primitive mode {_MODES.get(p.get('mode'), p.get('mode'))} (skipped)")
+                continue
+            if len(faces) == 0:
+                continue
+            mat, texcoord = materials.get(p.get("material"), f"{pwhere}.material")
+            if mat is None:
+                continue
+            uv = None
+            uv_key = f"TEXCOORD_{0 if texcoord is None else texcoord}"
+            if uv_key in attr:
+                uv = c.accessor(attr[uv_key], f"{pwhere}.attributes.{uv_key}", (2,)).astype(np.float64)
+                uv[:, 1] = 1.0 - uv[:, 1]            # glTF's v runs down the image, ours up
+            elif texcoord is not None:
+                raise _Malformed(f"{pwhere}.attributes", f"material {p.get('material')} samples "
+                                 f"{uv_key}, which the primitive does not have")
+            normals = None
+            if "NORMAL" in attr:
+                n = c.accessor(attr["NORMAL"], f"{pwhere}.attributes.NORMAL", (3,)).astype(np.float64)
+                normals = _unit_normals(n @ np.linalg.inv(world[:3, :3]))   # inverse transpose
+                if normals is None:
+                    unsupported.add("zero-length NORMALs (those primitives are flat shaded)")
+            if len(pos) and (faces.max() >= len(pos)):
+                raise _Malformed(f"{pwhere}.indices", f"index {int(faces.max())} >= {len(pos)} vertices")
+            if det < 0:   # a mirroring transform reverses the winding
+                faces = faces[:, ::-1]
+            verts = pos @ world[:3, :3].T + world[:3, 3]
+            for a, what in ((uv, "TEXCOORD"), (normals, "NORMAL")):
+                if a is not None and len(a) != len(pos):
+                    raise _Malformed(f"{pwhere}.attributes.{what}", f"{len(a)} values for {len(pos)} vertices")
+            name = f"{label}.{pi}"
+            m = MeshData(verts, np.ascontiguousarray(faces, np.int64), uv, normals)
+            m.validate(f"{where} ({name}, {pwhere})")
+            out.meshes.append(m)
+            out.objects.append(SceneObject(name=name, mesh=MeshSpec(kind="arrays", vertices=verts, faces=m.faces,
+                                                                        uvs=uv, normals=normals),
+                                           material=mat, transform=obj.transform, motion=obj.motion))
+    if not out.objects:
+        raise _Malformed("meshes", "the scene has no triangle primitive left to draw")
+    if spec_camera(obj):
+        out.camera = _camera(c, placed)
+    out.digests = c.digests
+    if unsupported:
+        warnings.warn(f"{where}: glTF file {full}: not rendered: {'; '.join(sorted(unsupported))}",
+                      SceneWarning, stacklevel=4)
+    return out
+
+
+def spec_camera(obj: SceneObject) -> bool:
+    return obj.mesh.kind == "gltf" and obj.mesh.camera
