@@ -29,7 +29,7 @@ def synthetic(h: int, w: int) -> np.ndarray:
     y, x = np.mgrid[0:h, 0:w] / np.float32(max(h, w))
     img = np.stack([0.2 + 0.6 * x, 0.3 + 0.4 * y, 0.5 - 0.3 * x * y], -1)
     img = img * (1 + 0.5 * (np.sin(40 * x + 25 * y) > 0))[..., None]       # hard edges
-    for cx, cy, v in ((0.3, 0.2, 20.0), (0.7, 0.4, 6.0), (0.5, 0.5, 2.0)):
+    for cx, cy, v in ((0.3, 0.2, 3.0), (0.7, 0.4, 1.5), (0.5, 0.5, 0.8)):
         img += v * np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / 2e-4)[..., None]   # highlights
     return img.astype(np.float32)
 

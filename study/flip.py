@@ -153,6 +153,8 @@ def max_distance() -> f32:
     return _f32_of(float(hy) ** float(GQC))
 
 
+# Precision of the pow/cbrt evaluations. float64 rounds like a correctly rounded powf and agrees
+# a little closer (map max |diff| 2.5e-6 against 3.6e-6 on 64x48 pairs), float32 is ~25% faster.
 POW_PRECISION = "float32"
 
 
@@ -162,14 +164,14 @@ def _pow_type():
 
 
 def _pow(x, y: float, F64):
-    """x^y for x >= 0 in float32, via float64 so it rounds like a correctly rounded powf."""
+    """x^y for x >= 0 as a float32 result, evaluated in F64 (see POW_PRECISION)."""
     xd = F64(x)
     r = dr.exp2(dr.log2(xd) * y) if y != 0.5 else dr.sqrt(xd)
     return type(x)(dr.select(xd > 0, r, 0.0))
 
 
 def _pow_var(x, y, F64):
-    """x^y for x >= 0 and a per-pixel exponent y, float32 result, C semantics at x = 0."""
+    """x^y for x >= 0 and a per-pixel exponent y, float32 result, C's pow at x = 0."""
     xd, yd = F64(x), F64(y)
     r = dr.exp2(dr.log2(xd) * yd)
     r = dr.select(xd > 0, r, dr.select(yd == 0, 1.0, dr.select(yd > 0, 0.0, math.inf)))

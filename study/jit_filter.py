@@ -3,13 +3,14 @@
 Layout: an (H, W) plane is one flat array, row-major, each row padded to Wg = 8*ceil(W/8) entries.
 One Dr.Jit lane handles 8 consecutive pixels of a row (a "group"): it reads whole 8-entry packets
 (`dr.gather(ArrayXf, ..., shape=(8, n))`, which Dr.Jit lowers to vector loads) instead of one
-scattered gather per tap, and writes its 8 results with one packet scatter. Per-pixel gathers with
-clamped indices cost ~3x more on this CPU (AVX without AVX2 has no gather instruction).
+scattered gather per tap, and writes its 8 results with one packet scatter. Measured at 1600x900,
+21 taps, 2 threads: 2.7 ms CPU for the vertical pass with packets against 12 ms with one gather per
+pixel and tap. Sources must be Dr.Jit's own (aligned) arrays, see Layout.upload.
 
 Horizontal pass: a lane needs the pixels 8gx-R .. 8gx+7+R of its row. It loads the packets that
 cover them (packet indices clamped to the row, so every read is in bounds); the few lanes at the row
 ends, where a tap falls outside [0, W), replace those tap values by the border rule's pixel, which is
-always inside the packets the lane loaded (a static choice per lane class, applied with selects).
+read from packets the lane also loads (a static choice per lane class, applied with selects).
 Vertical pass: packet rows y+j, with the row index mapped by the border rule.
 
 Sums run in tap order -R..R as acc + w*v (no FMA), the order FLIP's C++ uses, so float32 results
@@ -17,7 +18,6 @@ follow it closely; SSIM runs in float64 as scikit-image does.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Callable, Sequence
 

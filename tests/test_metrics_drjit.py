@@ -8,7 +8,6 @@ from skimage.metrics import structural_similarity
 
 from study import flip as F
 from study import metrics
-from study import ssim as S
 
 TOL = 1e-5   # the brief's bound on means and maps; measured margins are in the assertions' comments
 
