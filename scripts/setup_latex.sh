@@ -3,7 +3,7 @@
 # and `make study` never call this. pdfinfo/pdftoppm (poppler-utils) let the PDF be checked and looked at.
 set -euo pipefail
 
-APT_PACKAGES=(latexmk texlive-latex-recommended texlive-latex-extra texlive-fonts-recommended poppler-utils)
+APT_PACKAGES=(latexmk texlive-latex-recommended texlive-latex-extra texlive-fonts-recommended lmodern poppler-utils)
 missing=()
 for pkg in "${APT_PACKAGES[@]}"; do
     dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed" || missing+=("$pkg")

@@ -13,6 +13,8 @@
   const viewers = [];
   const linkBox = document.getElementById("taa-link");
   let active = null;
+  let lastPointer = null;
+  window.addEventListener("mousemove", (e) => { setTimeout(() => { lastPointer = [e.screenX, e.screenY]; }, 0); }, true);
 
   function load(path, done) {
     let e = images.get(path);
@@ -20,7 +22,12 @@
       e = { img: new Image(), ok: false, failed: false, waiting: [] };
       images.set(path, e);
       e.img.onload = () => { e.ok = true; e.waiting.splice(0).forEach((f) => f(e)); };
-      e.img.onerror = () => { e.failed = true; e.waiting.splice(0).forEach((f) => f(e)); };
+      e.img.onerror = () => {
+        // Chrome logs no error for a missing file:// image: say it, so a broken report shows.
+        console.error("taa report: cannot load image " + path);
+        e.failed = true;
+        e.waiting.splice(0).forEach((f) => f(e));
+      };
       e.img.src = path;
     }
     if (done) { if (e.ok || e.failed) done(e); else e.waiting.push(done); }
@@ -119,7 +126,11 @@
     bind() {
       const st = this.stage;
       let drag = null;
-      st.addEventListener("mouseenter", () => this.activate());
+      // The pointer makes a viewer active only by moving: a scroll that carries another viewer under
+      // a still pointer (e.g. after a table link) must not take the keys away.
+      st.addEventListener("mousemove", (e) => {
+        if (lastPointer && (e.screenX !== lastPointer[0] || e.screenY !== lastPointer[1])) this.activate();
+      });
       st.addEventListener("mousedown", (e) => {
         this.activate();
         drag = { x: e.clientX, y: e.clientY, px: this.px, py: this.py };
