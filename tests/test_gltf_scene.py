@@ -388,3 +388,29 @@ def test_cli_exits_2_on_a_missing_or_corrupt_gltf(tmp_path):
     r = CliRunner().invoke(main, ["agree", "--scene", scene_file(
         tmp_path, extra='material = { albedo = [1.0, 0.0, 0.0] }')])
     assert r.exit_code == 2 and "takes its materials from the file" in r.output
+
+
+def test_instanced_mesh_shares_its_texture(tmp_path):
+    """Two nodes placing one mesh: two objects each, one decoded texture, stored once for shading."""
+    from shading.frame import frame_geometry
+    doc = _hand_gltf(tmp_path)
+    doc["nodes"].append({"name": "copy", "translation": [0, 0, -2], "mesh": 0})
+    doc["scenes"][0]["nodes"].append(4)
+    (tmp_path / "hand.gltf").write_text(json.dumps(doc))
+    s = load_scene_file(scene_file(tmp_path, path="hand.gltf"))
+    assert [o.name for o in s.desc.objects] == ["g:mirror#1.0", "g:mirror#1.1", "g:copy#4.0", "g:copy#4.1"]
+    np.testing.assert_allclose(s.meshes[2].vertices, [[0, 0, -2], [1, 0, -2], [0, 1, -2], [2, 2, -2]], atol=1e-12)
+    assert s.textures[0] is s.textures[2]
+    geo = frame_geometry(s, 0)
+    table = np.asarray(geo.obj_tex).reshape(-1, 3)      # per object id: offset, width, height
+    assert table[1].tolist() == table[3].tolist() == [0, 2, 1] and table[2].tolist() == [0, 0, 0]
+    assert np.asarray(geo.tex_data).size == 2 * 3
+
+
+def test_triangle_fan(tmp_path):
+    doc = _hand_gltf(tmp_path)
+    doc["meshes"][0]["primitives"][0]["mode"] = 6
+    (tmp_path / "hand.gltf").write_text(json.dumps(doc))
+    s = load_scene_file(scene_file(tmp_path, path="hand.gltf"))
+    # The fan (1,2,0), (2,3,0), reversed by the mirroring node.
+    assert s.meshes[0].faces.tolist() == [[0, 2, 1], [0, 3, 2]]
