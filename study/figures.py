@@ -93,9 +93,9 @@ def comparison_figure(images: dict[str, np.ndarray], reference: np.ndarray, erro
                       n_insets: int = 2, inset_size: int | None = None, reference_label: str = "Reference",
                       captions: dict[str, str] | None = None, column_inches: float = 1.6) -> bytes:
     """PNG of the reference and each technique (columns), full frame on top with the inset squares
-    drawn, then one row per inset magnified with nearest-neighbour pixels. The full frames are at
-    one image pixel per figure pixel; an inset of s pixels fills a column, so it is magnified
-    width / s times. captions: optional text under a column's full frame (e.g. its PSNR)."""
+    drawn, then one row per inset magnified with nearest-neighbour pixels. A column is
+    max(width, 320) figure pixels wide (small images are enlarged, so that the labels stay legible);
+    an inset of s pixels fills a column. captions: optional text under a column's full frame (e.g. its PSNR)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -107,7 +107,7 @@ def comparison_figure(images: dict[str, np.ndarray], reference: np.ndarray, erro
     ncol, nrow = len(columns), 1 + len(regions)
     title_in = 0.3
     fig = plt.figure(figsize=(column_inches * ncol, title_in + column_inches * (h / w + len(regions))),
-                     dpi=w / column_inches)
+                     dpi=max(w, 320) / column_inches)
     grid = fig.add_gridspec(nrow, ncol, height_ratios=[h / w] + [1.0] * len(regions),
                             left=0, right=1, bottom=0, top=1 - title_in / fig.get_figheight(),
                             wspace=0.04, hspace=0.04)

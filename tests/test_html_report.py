@@ -93,7 +93,7 @@ def test_page_is_self_contained_and_keeps_the_techniques_order(tmp_path):
     assert set(re.findall(r"https?://[^\s\"'<>]+", page)) == {"http://www.w3.org/2000/svg"}
     model = page_model(page)
     static, ghost = model["viewers"]
-    # Jinja's tojson sorts keys by default, which would put "Improved" before "No AA".
+    # The layers are a list: sorted keys (Jinja's tojson default) would put "Improved" before "No AA".
     assert [L["label"] for L in static["layers"]] == ["Reference", "No AA", "Improved"]
     assert static["layers"][1]["images"] == ["images/static_tiny_no_aa.png"]
     assert static["layers"][2]["ssim"] == "maps/static_tiny_improved_ssim.png"
@@ -393,6 +393,9 @@ def test_browser_ghosting_exposure_and_tables(browser, tmp_path):
     no_aa.click()                                         # 9.5 < 30; '–' (no value) last
     assert [tr.find_elements(By.TAG_NAME, "td")[2].text for tr in table.find_elements(By.CSS_SELECTOR, "tbody tr")] \
         == ["9.5 / 0.1", "30.000 / 0.9", "–"]
+    no_aa.click()                                         # descending: the missing value stays last
+    assert [tr.find_elements(By.TAG_NAME, "td")[2].text for tr in table.find_elements(By.CSS_SELECTOR, "tbody tr")] \
+        == ["30.000 / 0.9", "9.5 / 0.1", "–"]
     # a linked cell opens its image in the viewer that holds it
     table.find_element(By.CSS_SELECTOR, 'a[data-img="maps/static_tiny_no_aa_flip.png"]').click()
     _wait_drawn(browser, v, "maps/static_tiny_no_aa_flip.png")
