@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .description import Material, MeshSpec, SceneObject, Texture
-from .meshes import MeshData, SceneError, SceneWarning
+from .meshes import MeshData, SceneError, SceneWarning, degenerate_faces
 
 _COMPONENT = {5120: "i1", 5121: "u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
 _WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
@@ -52,7 +52,6 @@ class Expanded:
     meshes: list[MeshData]
     camera: dict | None                 # Camera fields in the glTF's world (before the object transform)
     digests: list[str] = field(default_factory=list)   # sha256 of the file and every file it names
-    unsupported: set[str] = field(default_factory=set)
 
 
 class _Container:
@@ -405,6 +404,8 @@ def read(obj: SceneObject, base_dir: str | None, where: str) -> Expanded:
         return _read(obj, full, where)
     except _Malformed as exc:
         raise SceneError(f"{where}: glTF file {full}: {exc}") from None
+    except SceneError:   # already names the file and the primitive
+        raise
     except (KeyError, IndexError, TypeError, ValueError, AttributeError) as exc:
         # A field of the wrong JSON type or a missing required key deep inside the file.
         raise SceneError(f"{where}: glTF file {full} is malformed: {type(exc).__name__}: {exc}") from None
@@ -422,7 +423,8 @@ def _read(obj: SceneObject, full: str, where: str) -> Expanded:
             unsupported.add(what)
     materials = _Materials(c, unsupported)
     placed = _walk(c)
-    out = Expanded([], [], None, unsupported=unsupported)
+    out = Expanded([], [], None)
+    dropped = 0
     for ni, world in placed:
         node = c.json["nodes"][ni]
         if "mesh" not in node:
@@ -475,6 +477,14 @@ def _read(obj: SceneObject, full: str, where: str) -> Expanded:
             for a, what in ((uv, "TEXCOORD"), (normals, "NORMAL")):
                 if a is not None and len(a) != len(pos):
                     raise _Malformed(f"{pwhere}.attributes.{what}", f"{len(a)} values for {len(pos)} vertices")
+            # Real assets carry zero-area triangles (strip restarts, collapsed detail): they cover
+            # no pixel, so they are dropped and counted in the one warning, not one per primitive.
+            flat = degenerate_faces(verts, faces)
+            if flat.any():
+                dropped += int(flat.sum())
+                faces = faces[~flat]
+                if len(faces) == 0:
+                    continue
             name = f"{label}.{pi}"
             m = MeshData(verts, np.ascontiguousarray(faces, np.int64), uv, normals)
             m.validate(f"{where} ({name}, {pwhere})")
@@ -484,14 +494,12 @@ def _read(obj: SceneObject, full: str, where: str) -> Expanded:
                                            material=mat, transform=obj.transform, motion=obj.motion))
     if not out.objects:
         raise _Malformed("meshes", "the scene has no triangle primitive left to draw")
-    if spec_camera(obj):
+    if dropped:
+        unsupported.add(f"{dropped} zero-area triangles (dropped)")
+    if obj.mesh.camera:
         out.camera = _camera(c, placed)
     out.digests = c.digests
     if unsupported:
         warnings.warn(f"{where}: glTF file {full}: not rendered: {'; '.join(sorted(unsupported))}",
                       SceneWarning, stacklevel=4)
     return out
-
-
-def spec_camera(obj: SceneObject) -> bool:
-    return obj.mesh.kind == "gltf" and obj.mesh.camera

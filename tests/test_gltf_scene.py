@@ -363,6 +363,8 @@ def test_decoder_paths_by_hand(tmp_path):
     (lambda d: d["cameras"][0].update(type="orthographic"), "cameras[0].type: only perspective"),
     (lambda d: d.update(extensionsRequired=["KHR_draco_mesh_compression"]), "extensionsRequired"),
     (lambda d: d["nodes"][0].update(children=[1, 0]), "not a tree"),
+    (lambda d: d["nodes"][1].update(scale=[0, 1, 1]), "nodes[1]: world transform is singular"),
+    (lambda d: d["meshes"][0]["primitives"][0].update(material=5), "materials index 5 out of range"),
     (lambda d: d["buffers"][0].update(uri="gone.bin"), "buffers[0].uri: file not found"),
     (lambda d: d["meshes"][0]["primitives"][0]["attributes"].pop("TEXCOORD_1"), "TEXCOORD_1"),
     (lambda d: d["materials"][0]["pbrMetallicRoughness"].update(baseColorFactor=[1, 1]), "baseColorFactor"),
@@ -414,3 +416,16 @@ def test_triangle_fan(tmp_path):
     s = load_scene_file(scene_file(tmp_path, path="hand.gltf"))
     # The fan (1,2,0), (2,3,0), reversed by the mirroring node.
     assert s.meshes[0].faces.tolist() == [[0, 2, 1], [0, 3, 2]]
+
+
+def test_zero_area_triangles_are_dropped_and_counted_in_the_one_warning(tmp_path):
+    _hand_gltf(tmp_path)
+    data = bytearray((tmp_path / "hand.bin").read_bytes())
+    data[148:160] = np.array([2, -1, 0], np.float32).tobytes()   # vertex 3 onto the line through 1 and 2
+    (tmp_path / "hand.bin").write_bytes(bytes(data))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        s = load_scene_file(scene_file(tmp_path, path="hand.gltf"))
+    msgs = [str(w.message) for w in caught if issubclass(w.category, SceneWarning)]
+    assert len(msgs) == 1 and "1 zero-area triangles (dropped)" in msgs[0] and "hand.gltf" in msgs[0]
+    assert s.meshes[0].faces.tolist() == [[2, 1, 0]]
