@@ -233,10 +233,18 @@ class ResolvedScene:
     def content_hash(self) -> str:
         """Hash of everything that determines the images: description, mesh and texture data."""
         h = hashlib.sha256(json.dumps(self.desc.model_dump(mode="json"), sort_keys=True).encode())
+        seen: dict[int, int] = {}
         for arrays in (self.meshes, self.textures, self.alphas):
             for a in arrays:
                 parts = (a.vertices, a.faces, a.uvs, a.normals) if isinstance(a, MeshData) else (a,)
                 for p in parts:
+                    if p is not None and self.asset_digests and id(p) in seen:
+                        # A glTF material's texture, shared by its primitives, is hashed once
+                        # (scenes without glTF objects keep the hash they always had).
+                        h.update(f"={seen[id(p)]}".encode())
+                        continue
+                    if p is not None:
+                        seen[id(p)] = len(seen)
                     h.update(b"-" if p is None else np.ascontiguousarray(p).tobytes())
         for d in self.asset_digests:   # none without glTF objects: other scenes keep their hash
             h.update(d.encode())
