@@ -1,0 +1,151 @@
+"""Comparison figures with insets (study.figures) on synthetic images, and the paper's PDF
+(study.paper_pdf + paper/main.tex) built from a real tiny study's tables and figures where LaTeX is
+installed (`make paper` installs it; elsewhere that test is skipped with the reason)."""
+import io
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from study import paper_pdf
+from study.figures import comparison_figure, inset_regions
+
+sys.path.insert(0, str(Path(__file__).parent))
+from study_fixtures import run_cli, write_scenes  # noqa: E402
+
+H, W = 54, 96
+PAPER = Path(__file__).resolve().parent.parent / "paper"
+
+
+def _inside(box, x, y) -> bool:
+    bx, by, bw, bh = box
+    return bx <= x < bx + bw and by <= y < by + bh
+
+
+def _overlap(a, b) -> bool:
+    return a[0] < b[0] + b[2] and b[0] < a[0] + a[2] and a[1] < b[1] + b[3] and b[1] < a[1] + a[3]
+
+
+def test_insets_go_where_the_techniques_differ_most():
+    a, b = np.zeros((H, W)), np.zeros((H, W))
+    a[28:32, 60:64] = 1.0               # only A is wrong here: spread 1
+    b[8:11, 10:13] = 0.6                # only B is wrong here: spread 0.6
+    a[40:50, 80:90] = b[40:50, 80:90] = 0.9   # both equally wrong (a bigger, stronger blob): spread 0
+    regions = inset_regions({"A": a, "B": b}, n=2, size=10)
+    assert len(regions) == 2 and all(r[2:] == (10, 10) for r in regions)
+    first, second = regions
+    assert all(_inside(first, x, y) for x in range(60, 64) for y in range(28, 32))
+    assert all(_inside(second, x, y) for x in range(10, 13) for y in range(8, 11))
+    assert not any(_inside(r, 85, 45) for r in regions)
+    # centred on the blob rather than the first tied window: the blob's centre (61.5, 29.5) is
+    # within a pixel of the window's
+    assert abs(first[0] + 4.5 - 61.5) <= 1 and abs(first[1] + 4.5 - 29.5) <= 1
+
+
+def test_one_technique_insets_follow_its_error_and_never_overlap():
+    e = np.zeros((H, W))
+    e[5, 90] = 3.0
+    e[50, 3] = 2.0
+    e[30:33, 40:43] = 0.3               # 9 px x 0.3 = 2.7: between the two single pixels
+    regions = inset_regions({"only": e}, n=3, size=8)
+    assert _inside(regions[0], 90, 5) and _inside(regions[1], 40, 30) and _inside(regions[2], 3, 50)
+    many = inset_regions({"only": np.random.default_rng(1).random((H, W))}, n=50, size=20)
+    assert 1 <= len(many) <= (W // 20) * (H // 20)
+    assert all(0 <= x and 0 <= y and x + 20 <= W and y + 20 <= H for x, y, _, _ in many)
+    assert not any(_overlap(p, q) for i, p in enumerate(many) for q in many[i + 1:])
+
+
+def test_figure_magnifies_the_region_with_the_error():
+    yy, xx = np.mgrid[:H, :W]
+    ref = np.stack([xx * 2, yy * 3, np.full((H, W), 80)], -1).astype(np.uint8)
+    a, b = ref.copy(), ref.copy()
+    a[28:32, 60:64] = (255, 0, 255)     # a colour found nowhere else
+    ea = np.zeros((H, W))
+    ea[28:32, 60:64] = 1.0
+    png = comparison_figure({"A": a, "B": b}, ref, {"A": ea, "B": np.zeros((H, W))}, n_insets=2, inset_size=12)
+    im = np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(int)
+    magenta = ((im[..., 0] > 230) & (im[..., 1] < 30) & (im[..., 2] > 230)).sum()
+    # A column is 320 px: the full frame shows the 16 patch pixels at (320/96)^2 each, the inset at
+    # (320/12)^2 each; only an inset on the patch gives this many.
+    column = 320
+    assert magenta > 0.8 * 16 * (column / 12) ** 2
+    assert im.shape[1] == pytest.approx(3 * column, abs=3)
+    assert im.shape[0] == pytest.approx(column * (H / W + 2) + 0.3 * column / 1.6, abs=4)
+
+
+def test_figure_refuses_mismatched_inputs():
+    ref = np.zeros((H, W, 3), np.uint8)
+    with pytest.raises(ValueError, match="image 'A' is"):
+        comparison_figure({"A": np.zeros((H, W + 1, 3), np.uint8)}, ref, {})
+    with pytest.raises(ValueError, match="error map 'A' is"):
+        comparison_figure({"A": ref}, ref, {"A": np.zeros((H + 1, W))})
+    with pytest.raises(ValueError, match="does not fit"):
+        inset_regions({"A": np.zeros((H, W))}, size=H + 1)
+
+
+def test_tables_get_a_label_after_their_caption():
+    tex = "\\begin{table}[t]\n\\begin{tabular}{lr}\na & b \\\\\n\\end{tabular}\n\\caption{T}\n\\end{table}\n"
+    out = paper_pdf._labelled_table(tex, "static_pipe")
+    assert out.endswith("\\caption{T}\n\\label{tab:static_pipe}\n\\end{table}\n")
+
+
+# -- the PDF -------------------------------------------------------------------------------------------
+def _latex_missing():
+    for exe in ("pdflatex", "latexmk"):
+        if shutil.which(exe) is None:
+            return f"{exe} is not installed (`make paper` installs a LaTeX toolchain: scripts/setup_latex.sh)"
+    return None
+
+
+def test_paper_builds_from_a_tiny_study_with_every_table_and_figure(tmp_path):
+    why = _latex_missing()
+    if why:
+        print(f"skipping the PDF build: {why}")
+        pytest.skip(why)
+    scenes = write_scenes(tmp_path)
+    out = tmp_path / "out"
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))
+        run_cli(["run", "--scenes", ",".join(scenes), "--techniques", "noaa", "--techniques", "taa_baseline",
+                 "--no-agreement", "--out", out])
+    paper = tmp_path / "paper"
+    paper.mkdir()
+    shutil.copy(PAPER / "main.tex", paper / "main.tex")       # the repository's own paper
+    got = paper_pdf.fill_generated(out, paper)
+    tables = sorted(p.stem for p in (out / "tables").glob("*.tex"))
+    assert sorted(got["tables"]) == tables and got["tables"][:2] == ["headline", "reproduction"]
+    assert {"comparison_tiny_moving.png", "comparison_tiny_still.png"} <= set(got["figures"])
+    assert set(got["figures"]) >= {p.name for p in (out / "plots").glob("*.png")}
+
+    start = time.perf_counter()
+    pdf = paper_pdf.build_pdf(paper)
+    took = time.perf_counter() - start
+    c = paper_pdf.contents(paper)
+    print(f"paper: {c['pages']} pages, {len(got['tables'])} tables, {len(got['figures'])} figures, "
+          f"{c['overfull']} overfull boxes, built in {took:.1f} s: {pdf}")
+    assert pdf.is_file() and pdf.read_bytes()[:5] == b"%PDF-"
+    assert set(c["labels"]) >= {f"tab:{t}" for t in tables} | {f"fig:{Path(f).stem}" for f in got["figures"]}
+    assert c["graphics"] == sorted(f"generated/figures/{f}" for f in got["figures"])
+    # every table and figure is a float on a page of its own ('\clearpage' between them), after the text
+    assert c["pages"] >= len(got["tables"]) + len(got["figures"])
+    if shutil.which("pdfinfo"):
+        info = subprocess.run(["pdfinfo", str(pdf)], capture_output=True, text=True, check=True).stdout
+        assert f"Pages:          {c['pages']}" in info
+    if shutil.which("pdftoppm"):          # the first pages as pictures, a test artefact to look at
+        subprocess.run(["pdftoppm", "-png", "-r", "60", "-f", "1", "-l", "3", str(pdf), str(tmp_path / "page")],
+                       check=True)
+        print("pages as PNG:", " ".join(str(p) for p in sorted(tmp_path.glob("page*.png"))))
+
+
+def test_a_latex_error_is_reported_with_its_line(tmp_path):
+    why = _latex_missing()
+    if why:
+        pytest.skip(why)
+    (tmp_path / "main.tex").write_text("\\documentclass{article}\n\\begin{document}\n\\undefinedmacro\n\\end{document}\n")
+    with pytest.raises(paper_pdf.PaperError, match="Undefined control sequence"):
+        paper_pdf.build_pdf(tmp_path)
