@@ -246,6 +246,17 @@ def _md_title_note(p: Path) -> tuple[str, str]:
     return title, note
 
 
+def static_scenes(listed) -> list[str]:
+    """The scenes of a study's static test, from the file names it lists (images/static_<scene>_reference.png
+    with tables/static_<scene>.csv)."""
+    names = sorted({rel[len("images/static_"):-len("_reference.png")] for rel in listed
+                    if rel.startswith("images/static_") and rel.endswith("_reference.png")})
+    # "static_converged_X_reference" reads as scene "converged_X" of stem "static" too: where X is a
+    # scene of its own, it is X's converged protocol.
+    return [s for s in names if f"tables/static_{s}.csv" in listed
+            and not (s.startswith("converged_") and s[len("converged_"):] in names)]
+
+
 def collect(out_dir: Path) -> dict:
     """`data` for write() from the files of a finished study in out_dir (see the module docstring)."""
     from PIL import Image
@@ -258,12 +269,7 @@ def collect(out_dir: Path) -> dict:
     have = lambda rel: rel in listed and (out_dir / rel).is_file()   # noqa: E731
 
     stems = ("static", "static_converged")
-    scene_names = sorted({rel[len("images/static_"):-len("_reference.png")] for rel in listed
-                          if rel.startswith("images/static_") and rel.endswith("_reference.png")})
-    # "static_converged_X_reference" reads as scene "converged_X" of stem "static" too: where X is a
-    # scene of its own, it is X's converged protocol.
-    scene_names = [s for s in scene_names if have(f"tables/static_{s}.csv")
-                   and not (s.startswith("converged_") and s[len("converged_"):] in scene_names)]
+    scene_names = [s for s in static_scenes(listed) if have(f"tables/static_{s}.csv")]
     data = {"title": f"TAA study ({summary.get('profile', '?')} profile)", "profile": summary.get("profile", ""),
             "resolution": {}, "scenes": {}, "tables": {}}
     conv_rows = {}

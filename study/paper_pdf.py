@@ -92,11 +92,8 @@ def fill_generated(src: Path, paper_dir: Path, comparison_stem: str = "static") 
         write_text_atomic(gen / "tables" / f"{stem}.tex", _labelled_table((src / rel).read_text(), stem))
         parts.append(f"\\input{{generated/tables/{stem}}}")
     figures = []
-    scenes = sorted(rel[len(f"images/{comparison_stem}_"):-len("_reference.png")] for rel in listed
-                    if rel.startswith(f"images/{comparison_stem}_") and rel.endswith("_reference.png")
-                    and f"tables/{comparison_stem}_{rel[len(f'images/{comparison_stem}_'):-len('_reference.png')]}.csv"
-                    in listed)
-    for scene in scenes:
+    from .html_report import static_scenes
+    for scene in static_scenes(listed):
         png = _comparison(src, listed, comparison_stem, scene)
         if png is not None:
             figures.append((f"comparison_{scene}.png", png,
