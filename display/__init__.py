@@ -10,7 +10,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import colour
 import numpy as np
 
 REC709 = np.array([0.2126, 0.7152, 0.0722], np.float64)
@@ -50,6 +49,7 @@ class DisplayTransform:
 
     def encode(self, rgb: np.ndarray) -> np.ndarray:
         """Display image as floats in [0, 1], sRGB-encoded, not quantised."""
+        import colour   # colour-science loads its plotting stack (~1.7 s): only where an image is encoded
         return np.asarray(colour.cctf_encoding(self.tonemap(rgb), function="sRGB"), np.float64)
 
     def to_8bit(self, rgb: np.ndarray) -> np.ndarray:

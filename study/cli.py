@@ -263,6 +263,11 @@ def _profile(study_file, profile):
         _fail(str(exc))
 
 
+def _scene_name(spec: str) -> str:
+    from study.tasks import load_scene
+    return load_scene(spec).name
+
+
 def _load_scenes(names):
     from scenes import SceneError
     from study.tasks import load_scene
@@ -313,15 +318,31 @@ def run_study(profile, names, configs, out_dir, no_agreement, executor, sweep=Tr
     report.history_convergence(res.statics, study.profile.thesis_history)
     report.sparse_cost(converged + [g for gs in res.ghosts.values() for g in gs])
     report.convergence(res.references)
+    ghost_views = {}
+    for pname, results in list(res.ghosts.items())[:1]:      # the first (the thesis's) ghosting protocol
+        for g in results:
+            sc = _load_scenes([next(n for n in names if _scene_name(n) == g.scene)])[0]
+            ghost_views.setdefault(g.scene, {})[pname] = report.ghosting_frames(
+                g, lambda t, sc=sc, g=g: study.reference(sc, t, g.width, g.height))
     summary = {**res.stats, "seconds": round(_time.perf_counter() - start, 2), "profile": study.profile.name,
                "scenes": names, "techniques": [c.label for c in configs], "executor": executor.describe()}
     report.finish(summary)
+    from study import html_report
+    data = html_report.collect(out)
+    for scene, views in ghost_views.items():
+        if scene in data["scenes"]:
+            data["scenes"][scene]["ghosting"] = views
+    for scene, agree in res.agreements.items():
+        if scene in data["scenes"]:
+            data["scenes"][scene]["agreement"] = agree
+    html_report.write(out, data)
     click.echo((out / "tables" / "headline.md").read_text())
     if (out / "tables" / "reproduction.md").exists():
         click.echo((out / "tables" / "reproduction.md").read_text())
     click.echo(f"runs computed {res.stats['runs_computed']}, cached {res.stats['runs_cached']}; "
                f"metrics computed {res.stats['metrics_computed']}; references rendered "
-               f"{res.stats['references_rendered']}; {summary['seconds']:.1f} s; artefacts in {out}/")
+               f"{res.stats['references_rendered']}; {summary['seconds']:.1f} s; artefacts in {out}/, "
+               f"report {out / 'report.html'}")
     return out
 
 

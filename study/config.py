@@ -100,7 +100,7 @@ class Profile:
     resolution: object                    # 'quick' | 'full' (each scene's own) | (w, h)
     static: Protocol
     ghosting: tuple = ()                  # ghosting protocols
-    ref_settings: tuple = (("target_noise_db", 60.0),)   # ReferenceCache.get settings, as items
+    ref_settings: tuple = (("se_bound_lsb", 0.5), ("target_noise_db", 60.0))   # ReferenceCache.get settings
     ghosting_techniques_skip: tuple = ("accumulation",)   # N sub-frames per frame: too slow for sequences
     sweep_scenes: tuple = ("sphere_ghosting", "disocclusion")  # where the sparse-supersampling mu sweep runs
     agreement_samples: int = 64

@@ -221,6 +221,44 @@ class Report:
         self._table(f"{stem}_{res.scene}", Table(f"Ghosting test, {res.test}: {res.scene}", header, rows, note), inputs)
         self._file(f"plots/{stem}_{res.scene}.png", lambda: _plot_series(res), inputs)
 
+    def ghosting_frames(self, res, reference, max_frames: int = 24) -> dict:
+        """Display images of a ghosting sequence for the HTML report's frame slider (at most
+        `max_frames`, evenly spaced), and its per-frame metrics. `reference(t)` gives frame t's
+        Reference. Returns the html_report 'ghosting' entry of this protocol."""
+        frames = res.frames
+        if len(frames) > max_frames:
+            idx = np.linspace(0, len(frames) - 1, max_frames).round().astype(int)
+            frames = [frames[i] for i in sorted(set(idx))]
+        stem = f"ghosting_frames/{res.test}_{res.scene}"
+        entry = {"frames": frames, "reference": [], "techniques": {}}
+        cache: dict = {}
+
+        def ref_of(t):
+            if t not in cache:
+                r = reference(t)
+                cache[t] = (r, DisplayTransform.from_reference(r.image))
+            return cache[t]
+        for t in frames:
+            rel = f"images/{stem}_reference_{t:04d}.png"
+            key = {"reference": res.reference_keys.get(t)}
+            self._file(rel, lambda t=t: _png(ref_of(t)[1].to_8bit(ref_of(t)[0].image)), key)
+            entry["reference"].append(rel)
+        for label, a in res.artefacts.items():
+            imgs = []
+            for t in frames:
+                rel = f"images/{stem}_{slug(label)}_{t:04d}.png"
+
+                def image(a=a, t=t):
+                    img = self._run_image(a, t)
+                    return _png(np.round(np.clip(img, 0, 1) * 255).astype(np.uint8) if a["output_space"] == "display"
+                                else ref_of(t)[1].to_8bit(img))
+                self._file(rel, image, {"run": a["run_key"], "frame": t, "reference": res.reference_keys.get(t)})
+                imgs.append(rel)
+            entry["techniques"][label] = {
+                "images": imgs,
+                "metrics": {m: [res.per_frame[label][t].get(m) for t in frames] for m in GHOST_METRICS}}
+        return entry
+
     # -- summaries ---------------------------------------------------------------------------
     def headline(self, views: dict) -> None:
         """Static test, PSNR / SSIM per scene, one row per labelled protocol (view label -> results)."""
@@ -362,7 +400,7 @@ class Report:
             ["scene", "seconds", "mean spp", "max spp", "SE p99.9 (LSB)", "SE max (LSB)", "pixels over bound",
              "noise PSNR (dB)"], rows, note), {n: r.key for n, r in refs.items()})
         if any(r.noise_history for r in refs.values()):
-            self._file("plots/reference_convergence.png", _plot_convergence(refs), {n: r.key for n, r in refs.items()})
+            self._file("plots/reference_convergence.png", lambda: _plot_convergence(refs), {n: r.key for n, r in refs.items()})
 
     def sparse_cost(self, results, stem: str = "sparse_cost",
                     title: str = "Sparse supersampling: invalid pixels and extra samples shaded (means over judged frames)") -> None:

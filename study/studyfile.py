@@ -24,7 +24,8 @@ such files (study/profiles/*.toml).
     frames = 24
     warmup = 0                                       # frames at the first instant, not judged
     [reference]
-    target_noise_db = 60.0                           # settings of references.ReferenceCache.get
+    se_bound_lsb = 0.5                               # settings of references.ReferenceCache.get
+    target_noise_db = 60.0
 
 Relative paths (scenes, technique files, out) are relative to the study file. A bad file exits 2
 with the file, the field and the value.
@@ -109,7 +110,7 @@ class StudyModel(_Model):
     ghosting_skip: list[str] = Field(default_factory=lambda: ["accumulation"])
     techniques: list[TechniqueEntry] = Field(default_factory=list)
     protocols: ProtocolsEntry = Field(default_factory=ProtocolsEntry)
-    reference: dict[str, Any] = Field(default_factory=lambda: {"target_noise_db": 60.0})
+    reference: dict[str, Any] = Field(default_factory=lambda: {"se_bound_lsb": 0.5, "target_noise_db": 60.0})
 
     @field_validator("resolution")
     @classmethod
