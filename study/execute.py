@@ -94,8 +94,10 @@ def execute(plan, executor: Executor = Executor(), progress: bool = True, log=pr
         else:
             from distributed import Client, LocalCluster, as_completed
             if executor.kind == "local":
+                import logging
+                # A task's own error is reported once, by the study, not again by the worker's log.
                 cluster = LocalCluster(n_workers=executor.workers, threads_per_worker=1, processes=True,
-                                       dashboard_address=":0")
+                                       dashboard_address=":0", silence_logs=logging.CRITICAL)
                 client = Client(cluster)
             else:
                 cluster, client = None, Client(executor.address)

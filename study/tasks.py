@@ -5,8 +5,6 @@ scheduler. A task whose artefact is already complete (another study made it mean
 """
 from __future__ import annotations
 
-import math
-import os
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -18,6 +16,26 @@ from provenance import task_key
 
 class TaskError(RuntimeError):
     """A task that fails deterministically (bad input): the study stops with this message."""
+
+
+def _deterministic(fn):
+    """Errors that running again cannot fix (a bad scene, NaN in a buffer, bad technique parameters)
+    become a TaskError naming the task, so every executor stops the study with the same message."""
+    import functools
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        from raster.visibility import RasterError
+        from references.render import ReferenceError
+        from scenes import SceneError
+        try:
+            return fn(*args, **kwargs)
+        except TaskError:
+            raise
+        except (SceneError, RasterError, ReferenceError, ValueError, KeyError, TypeError) as exc:
+            what = fn.__name__.removesuffix("_task")
+            raise TaskError(f"{what} of {args[1]!r}: {type(exc).__name__}: {exc}") from None
+    return wrapper
 
 
 @dataclass(frozen=True)
@@ -51,6 +69,7 @@ def _references(ctx: Context, scene, ts, w, h, settings: dict) -> dict:
 
 
 # -- reference -----------------------------------------------------------------------------------
+@_deterministic
 def reference_task(ctx: Context, scene_spec: str, t: int, w: int, h: int, settings: dict) -> dict:
     from references import ReferenceCache
     store = _setup(ctx)
@@ -62,6 +81,7 @@ def reference_task(ctx: Context, scene_spec: str, t: int, w: int, h: int, settin
 
 
 # -- a technique run -------------------------------------------------------------------------------
+@_deterministic
 def run_task(ctx: Context, scene_spec: str, w: int, h: int, protocol, configs: list, keys: dict,
              folders: dict, ref_settings: dict, deps=()) -> dict:
     """Run the techniques `configs` (sharing raster frames) over `protocol` on one scene; file each
@@ -116,6 +136,7 @@ def _run_summary(rec: dict, computed: bool) -> dict:
 
 
 # -- metrics of a run --------------------------------------------------------------------------------
+@_deterministic
 def metrics_task(ctx: Context, scene_spec: str, w: int, h: int, run_folder: str, run_key: str,
                  frame_times: dict, ref_settings: dict, maps_for: list, key: str, folder: str, deps=()) -> dict:
     """Metrics of every judged frame of one run against its references; maps of `maps_for`."""
@@ -173,6 +194,7 @@ def _metrics_data(rec: dict) -> dict:
 
 
 # -- agreement of a scene -------------------------------------------------------------------------------
+@_deterministic
 def agreement_task(ctx: Context, scene_spec: str, w: int, h: int, samples: int, ref_settings: dict,
                    key: str, path: str, deps=()) -> dict:
     from references import ReferenceCache
@@ -195,11 +217,3 @@ def agreement_task(ctx: Context, scene_spec: str, w: int, h: int, samples: int, 
 def _agreement_settings(ref_settings: dict) -> dict:
     return dict(ref_settings)
 
-
-def env_threads() -> int | None:
-    v = os.environ.get("TAA_STUDY_THREADS")
-    return int(v) if v else None
-
-
-def isfinite_or_none(v):
-    return v if v is None or math.isfinite(v) else None

@@ -89,3 +89,24 @@ def test_two_concurrent_studies_on_one_cache_compute_each_key_once(tmp_path, sce
     assert s[0]["metrics_computed"] + s[1]["metrics_computed"] == 12
     assert s[0]["references_rendered"] + s[1]["references_rendered"] == 5  # 4 moving frames + 1 still
     assert numbers(tmp_path / "s0") == numbers(tmp_path / "s1")
+
+
+def test_a_deterministic_failure_stops_every_executor_with_the_same_message(tmp_path, scenes):
+    """A technique that outputs NaN: exit 2 and one clear message, in-process and on a cluster."""
+    (tmp_path / "nan_taa.py").write_text(
+        "import numpy as np\nfrom taa_impl.simple import NoAA\n"
+        "class NaNAA(NoAA):\n    name = 'nan_aa'\n"
+        "    def process(self, frame, **kw):\n        return np.full(frame['color'].shape, np.nan, np.float32)\n")
+    cmd = [sys.executable, "-m", "study", "run", "--scenes", scenes[1], "--no-agreement", "--techniques",
+           f"Bad={tmp_path / 'nan_taa.py'}:NaNAA"]
+    msgs = []
+    for i, extra in enumerate(([], ["--workers", "2"])):
+        env = {**os.environ, "TAA_STUDY_CACHE": str(tmp_path / f"cache{i}")}
+        r = subprocess.run(cmd + ["--out", str(tmp_path / f"o{i}")] + extra, env=env, cwd=ROOT,
+                           capture_output=True, text=True, timeout=600)
+        assert r.returncode == 2, r.stderr[-3000:]
+        assert "Traceback" not in r.stderr
+        msgs.append([line for line in r.stderr.splitlines() if line.startswith("error:")])
+        assert not (tmp_path / f"o{i}" / "manifest.json").exists()     # no half-written output
+    assert msgs[0] == msgs[1] and len(msgs[0]) == 1
+    assert "technique 'Bad' produced NaN/Inf" in msgs[0][0]
