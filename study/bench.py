@@ -23,6 +23,8 @@ import numpy as np
 import backend
 from backend import dr, mi
 
+from .costs import median_ms
+
 BYTES = {"color": 12, "albedo": 12, "depth": 4, "object_id": 4, "prim_id": 4, "normal": 12, "motion": 8,
          "prev_depth": 4, "light_mask": 4}
 
@@ -56,16 +58,6 @@ def copy_bandwidth(repeats: int = 7) -> float:
         times.append(time.perf_counter() - t0)
         del dst
     return 2 * 4 * n / statistics.median(times[2:])
-
-
-def _median_ms(fn, repeats: int, warmup: int = 2) -> float:
-    times = []
-    for i in range(warmup + repeats):
-        t0 = time.perf_counter()
-        fn()
-        if i >= warmup:
-            times.append(time.perf_counter() - t0)
-    return 1000 * statistics.median(times)
 
 
 def _oracle_module():
@@ -135,17 +127,17 @@ def bench(width: int, height: int, repeats: int = 7, techniques=None, numpy_repe
         kw = _extra_inputs(tech, frame, width, height)
         if tech.inputs.sampling == "supersample":
             subs = [frame] * tech.inputs.subframes
-            out["end_to_end_ms"][name] = _median_ms(lambda: tech.process_samples(subs), repeats)
+            out["end_to_end_ms"][name] = median_ms(lambda: tech.process_samples(subs), repeats)
             out["techniques"][name] = {"ms": out["end_to_end_ms"][name]}
         else:
             run = lambda: tech.process(frame, jitter=(0, 0), far=100.0, **kw)  # noqa: E731
             run()                                        # compile, fill history
-            out["end_to_end_ms"][name] = _median_ms(run, repeats)
+            out["end_to_end_ms"][name] = median_ms(run, repeats)
             kernel = _kernel_only(tech, frame, width, height)
-            out["techniques"][name] = {"ms": _median_ms(kernel, repeats) if kernel else out["end_to_end_ms"][name]}
+            out["techniques"][name] = {"ms": median_ms(kernel, repeats) if kernel else out["end_to_end_ms"][name]}
         out["bandwidth_floor_ms"][name] = 1000 * bytes_per_pixel(tech) * width * height / bw
         if oracle is not None and name in ("taa_baseline", "taa_improved"):
             o = oracle.OracleTAA(tech.params, improved=(name == "taa_improved"))
             o.process(frame, 100.0)
-            out["numpy_ms"][name] = _median_ms(lambda: o.process(frame, 100.0), numpy_repeats, warmup=0)
+            out["numpy_ms"][name] = median_ms(lambda: o.process(frame, 100.0), numpy_repeats, warmup=0)
     return out

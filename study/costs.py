@@ -27,7 +27,8 @@ from .protocols import FrameSource, Step, drive
 REPEATS = 5
 
 
-def _median_ms(fn, repeats: int = REPEATS, warmup: int = 2) -> float:
+def median_ms(fn, repeats: int = REPEATS, warmup: int = 2) -> float:
+    """Median wall time of `fn` in ms over `repeats` calls after `warmup` (compiling) calls."""
     times = []
     for i in range(warmup + repeats):
         t0 = time.perf_counter()
@@ -51,13 +52,13 @@ def measure(scene, width: int, height: int, configs: list, displays: dict, extra
         inp = tech.inputs
         src = FrameSource(scene, width, height, inp.buffers)
         try:
-            raster_ms = _median_ms(lambda: src.raster.render(0, halton_offset(3, TAA_PERIOD), src.buffers, prev_t=0))
+            raster_ms = median_ms(lambda: src.raster.render(0, halton_offset(3, TAA_PERIOD), src.buffers, prev_t=0))
             drive(tech, Step(0, 0, keep=True, reset=True, prev_t=0, frame=1), src, scene, width, height,
                   displays.get(0))   # fills the history, as the kernels expect
 
             if inp.sampling == "supersample":
                 subs = [src.frame(0, halton_offset(j, inp.subframes), 0) for j in range(inp.subframes)]
-                resolve_ms = _median_ms(lambda: tech.process_samples(subs))
+                resolve_ms = median_ms(lambda: tech.process_samples(subs))
             else:
                 jit = halton_offset(1, TAA_PERIOD) if inp.sampling == "sequence" else (0.0, 0.0)
                 frame = src.frame(0, jit, 0)
@@ -69,7 +70,7 @@ def measure(scene, width: int, height: int, configs: list, displays: dict, extra
                 if inp.extra_samples:
                     mask = tech.invalid_mask(frame, far=kw["far"])
                     kw["supersampled"], kw["mask"] = frame["color"], mask
-                resolve_ms = _median_ms(lambda: tech.process(frame, jitter=jit, **kw))
+                resolve_ms = median_ms(lambda: tech.process(frame, jitter=jit, **kw))
             extra_ms = 0.0
             if inp.extra_samples:
                 frac = float(extra_spp.get(c.label, 0.0))
@@ -78,7 +79,7 @@ def measure(scene, width: int, height: int, configs: list, displays: dict, extra
                 mask = np.zeros((height, width), bool)
                 mask.ravel()[rng.choice(width * height, min(n_pix, width * height), replace=False)] = True
                 offs = halton_offsets(inp.extra_samples)
-                extra_ms = _median_ms(lambda: src.raster.supersample(0, mask, offs), repeats=3, warmup=1)
+                extra_ms = median_ms(lambda: src.raster.supersample(0, mask, offs), repeats=3, warmup=1)
             spp = inp.shaded_samples(float(extra_spp.get(c.label, 0.0)) / inp.extra_samples
                                      if inp.extra_samples else 0.0)
             out[c.label] = {"raster_ms": raster_ms, "resolve_ms": resolve_ms, "extra_ms": extra_ms,

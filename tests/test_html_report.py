@@ -228,8 +228,8 @@ def browser():
 
 
 def _open(driver, page: Path):
-    driver.get(page.resolve().as_uri())
-    driver.get_log("browser")          # the log of earlier pages is not this page's
+    driver.get_log("browser")          # the log of earlier pages is not this page's; this page's
+    driver.get(page.resolve().as_uri())  # errors may come while it loads, so clear before loading
 
 
 def _console_errors(driver) -> list[str]:
