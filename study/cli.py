@@ -263,11 +263,6 @@ def _profile(study_file, profile):
         _fail(str(exc))
 
 
-def _scene_name(spec: str) -> str:
-    from study.tasks import load_scene
-    return load_scene(spec).name
-
-
 def _load_scenes(names):
     from scenes import SceneError
     from study.tasks import load_scene
@@ -278,70 +273,34 @@ def _load_scenes(names):
 
 
 def run_study(profile, names, configs, out_dir, no_agreement, executor, sweep=True):
-    """`profile`: a Profile (study file). Returns the output folder."""
-    """The study end to end: plan and execute its tasks, then write its report. Returns the folder."""
+    """The study end to end: plan and execute its tasks (study.run), then write its tables, figures
+    and report (study.report.write_study). `profile`: a Profile (study file). Returns the folder."""
     import time as _time
     from pathlib import Path
 
-    from study.config import SPARSE_SWEEP, thesis_roles
-    from study.report import Report
+    from study.config import SPARSE_SWEEP
+    from study.report import write_study
     from study.run import Study
-    from study.store import Store
     from study.tasks import TaskError
 
     start = _time.perf_counter()
     _load_scenes(names)
     study = Study(profile, executor=executor)
-    import taa_impl
-    sweep_cfg = tuple(c for c in SPARSE_SWEEP if c.name in taa_impl.TECHNIQUES) if sweep else ()
+    sweep_cfg = SPARSE_SWEEP if sweep else ()
     try:
         res = study.run(names, configs, agreement=not no_agreement, sweep=sweep_cfg)
     except TaskError as exc:
         _fail(str(exc))
     out = Path(out_dir or study.profile.out or f"out/{study.profile.name}")
-    report = Report(out, Store(study.cache.root), thesis_roles(configs))
-    views = res.views
-    for vi, (vlabel, results) in enumerate(views.items()):
-        for r in results:
-            report.static(r, res.agreements.get(r.scene), res.references[r.scene],
-                          "static" if vi == 0 else "static_converged")
-    for pname, results in res.ghosts.items():
-        for g in results:
-            report.ghosting(g, res.agreements.get(g.scene), stem=pname)
-    for s in res.sweeps:
-        report.sparse_cost([s], stem="sparse_sweep_" + s.scene,
-                           title=f"Sparse supersampling: mu against cost and quality ({s.scene}, {s.test})")
-    report.headline(views)
-    report.reproduction(views, res.ghosts)
-    converged = list(views.values())[-1] if views else []
-    report.speed_error(converged)
-    report.history_convergence(res.statics, study.profile.thesis_history)
-    report.sparse_cost(converged + [g for gs in res.ghosts.values() for g in gs])
-    report.convergence(res.references)
-    ghost_views = {}
-    for pname, results in list(res.ghosts.items())[:1]:      # the first (the thesis's) ghosting protocol
-        for g in results:
-            sc = _load_scenes([next(n for n in names if _scene_name(n) == g.scene)])[0]
-            ghost_views.setdefault(g.scene, {})[pname] = report.ghosting_frames(
-                g, lambda t, sc=sc, g=g: study.reference(sc, t, g.width, g.height))
-    summary = {**res.stats, "seconds": round(_time.perf_counter() - start, 2), "profile": study.profile.name,
-               "scenes": names, "techniques": [c.label for c in configs], "executor": executor.describe()}
-    report.finish(summary)
-    from study import html_report
-    data = html_report.collect(out)
-    for scene, views in ghost_views.items():
-        if scene in data["scenes"]:
-            data["scenes"][scene]["ghosting"] = views
-    for scene, agree in res.agreements.items():
-        if scene in data["scenes"]:
-            data["scenes"][scene]["agreement"] = agree
-    html_report.write(out, data)
+    summary = {**res.stats, "profile": study.profile.name, "scenes": names,
+               "techniques": [c.label for c in configs], "executor": executor.describe()}
+    write_study(out, study, res, configs, summary, start)
     click.echo((out / "tables" / "headline.md").read_text())
     if (out / "tables" / "reproduction.md").exists():
         click.echo((out / "tables" / "reproduction.md").read_text())
     click.echo(f"runs computed {res.stats['runs_computed']}, cached {res.stats['runs_cached']}; "
                f"metrics computed {res.stats['metrics_computed']}; references rendered "
-               f"{res.stats['references_rendered']}; {summary['seconds']:.1f} s; artefacts in {out}/, "
+               f"{res.stats['references_rendered']}; {_time.perf_counter() - start:.1f} s; artefacts in {out}/, "
                f"report {out / 'report.html'}")
     return out
 

@@ -538,3 +538,49 @@ def _plot_speed(statics) -> bytes:
     ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
     fig.tight_layout()
     return _fig_bytes(fig)
+
+
+def write_study(out: Path, study, res, configs, summary: dict, start: float) -> None:
+    """Every table, image, map, plot and the interactive report of a study's results (study.run
+    StudyResults) into `out`; the manifest lists exactly these files."""
+    import time
+
+    from . import html_report
+    from .config import thesis_roles
+    from .store import Store
+    from .tasks import load_scene
+    report = Report(out, Store(study.cache.root), thesis_roles(configs))
+    views = res.views
+    for vi, results in enumerate(views.values()):
+        for r in results:
+            report.static(r, res.agreements.get(r.scene), res.references[r.scene],
+                          "static" if vi == 0 else "static_converged")
+    for pname, results in res.ghosts.items():
+        for g in results:
+            report.ghosting(g, res.agreements.get(g.scene), stem=pname)
+    for s in res.sweeps:
+        report.sparse_cost([s], stem="sparse_sweep_" + s.scene,
+                           title=f"Sparse supersampling: mu against cost and quality ({s.scene}, {s.test})")
+    report.headline(views)
+    report.reproduction(views, res.ghosts)
+    converged = list(views.values())[-1] if views else []
+    report.speed_error(converged)
+    report.history_convergence(res.statics, study.profile.thesis_history)
+    report.sparse_cost(converged + [g for gs in res.ghosts.values() for g in gs])
+    report.convergence(res.references)
+    ghost_views = {}
+    specs = {load_scene(spec).name: spec for spec in summary["scenes"]}
+    for pname, results in list(res.ghosts.items())[:1]:      # the first (the thesis's) ghosting protocol
+        for g in results:
+            scene = load_scene(specs[g.scene])
+            ghost_views.setdefault(g.scene, {})[pname] = report.ghosting_frames(
+                g, lambda t, scene=scene, g=g: study.reference(scene, t, g.width, g.height))
+    report.finish({**summary, "seconds": round(time.perf_counter() - start, 2)})
+    data = html_report.collect(out)
+    for scene, gv in ghost_views.items():
+        if scene in data["scenes"]:
+            data["scenes"][scene]["ghosting"] = gv
+    for scene, agree in res.agreements.items():
+        if scene in data["scenes"]:
+            data["scenes"][scene]["agreement"] = agree
+    html_report.write(out, data)
