@@ -51,3 +51,14 @@ def test_ab_with_one_pair_says_n_1_and_json_is_strict(tmp_path, monkeypatch):
     assert isinstance(out["overall"]["psnr"]["mean"], float)
     r = _invoke(["ab", "noaa", "fxaa", "--scenes", still])
     assert "no interval: one pair" in r.stdout
+
+
+def test_run_with_a_nan_camera_exits_2_before_anything_renders(tmp_path, monkeypatch):
+    monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))
+    _, still = write_scenes(tmp_path)
+    bad = tmp_path / "bad.toml"
+    bad.write_text(open(still).read().replace("position = [0.0, 0.0, 4.0]", "position = [0.0, nan, 4.0]"))
+    r = _invoke(["run", "--scenes", bad, "--techniques", "noaa", "--out", tmp_path / "out"])
+    assert r.exit_code == 2 and "camera.position" in r.output and "nan" in r.output.lower()
+    assert "Traceback" not in r.output
+    assert not (tmp_path / "cache").exists() and not (tmp_path / "out").exists()
