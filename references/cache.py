@@ -71,12 +71,14 @@ class ReferenceCache:
             se = np.stack([ch[f"stderr.{c}"] for c in "RGB"], -1).astype(np.float32)
             dse = np.stack([ch[f"display_stderr.{c}"] for c in "RGB"], -1).astype(np.float32)
             spp = ch["spp"].astype(np.int32)
+            floor = np.stack([ch[f"display_floor.{c}"] for c in "RGB"], -1).astype(np.float32)
             if img.shape != shape or not all(np.all(np.isfinite(x)) for x in (img, se, dse)):
                 raise ValueError("wrong shape or NaN/Inf pixels")
             history = [tuple(x) for x in json.loads(h.get("taa_convergence", "[]"))]
             return Reference(img, se, int(h["taa_spp"]), int(h["taa_passes"]), float(h["taa_seconds"]),
                              float(h["taa_noise_psnr_db"]), key, spp_map=spp, display_stderr=dse,
-                             bound_lsb=float(h["taa_bound_lsb"]), rounds=int(h["taa_rounds"]), _history=history)
+                             bound_lsb=float(h["taa_bound_lsb"]), rounds=int(h["taa_rounds"]), _history=history,
+                             display_floor=floor)
         except Exception as exc:
             self.log(f"reference cache: {path} is corrupt ({exc}); removing it and rendering again")
             path.unlink(missing_ok=True)
@@ -89,13 +91,15 @@ class ReferenceCache:
                   "taa_noise_psnr_db": float(ref.noise_psnr_db), "taa_bound_lsb": float(ref.bound_lsb),
                   "taa_spp_mean": float(ref.spp_mean), "taa_spp_max": int(ref.spp_max),
                   "taa_se_p999_lsb": float(ref.se_p999_lsb), "taa_se_max_lsb": float(ref.se_max_lsb),
-                  "taa_over_bound": int(ref.over_bound), "taa_code": code_version(),
+                  "taa_over_bound": int(ref.over_bound), "taa_floor_bound": int(ref.floor_bound),
+                  "taa_code": code_version(),
                   "taa_convergence": json.dumps([[int(round(a)), round(float(b), 4), round(float(c), 3),
                                                   round(float(d), 3)] for a, b, c, d in ref.noise_history])}
         chans = {"RGB": ref.image, "spp": ref.spp_map}
         for k, c in enumerate("RGB"):
             chans[f"stderr.{c}"] = ref.stderr[..., k]
             chans[f"display_stderr.{c}"] = ref.display_stderr[..., k]
+            chans[f"display_floor.{c}"] = ref.display_floor[..., k]
         write_exr(path, chans, header)
 
     def get(self, scene: ResolvedScene, t: int, width: int, height: int, *, se_bound_lsb=0.5,

@@ -51,12 +51,12 @@ from display import DisplayTransform
 from scenes import ResolvedScene
 from shading import frame_geometry, shade, trace_visible
 
-from .mitsuba_scene import SharedShadingIntegrator, path_integrator, path_scene, sensor
+from .mitsuba_scene import path_integrator, path_scene, sensor
 
 LSB = 1.0 / 255.0
 _MARGIN = 1.2            # extra samples planned beyond the predicted count
 _GROWTH = 4              # at most this many times a pixel's samples after one round
-_FIRST = 32              # samples per replicate, at least, in a pixel's first set (1024 with 32)
+_FIRST_MIN = 2           # samples per replicate, at least, in a pixel's first set (64 with 32)
 _FIRST_MAX = 32          # and at most, as the pilot's own noise estimate is rough
 _CHUNK_RAYS = 1 << 22    # rays per Dr.Jit launch
 
@@ -78,6 +78,7 @@ class Reference:
     display_stderr: np.ndarray | None = None   # (H, W, 3) display-domain SE (1 = full scale)
     bound_lsb: float = 0.5                     # the per-pixel bound it was rendered to
     rounds: int = 0                            # adaptive rounds after the pilot
+    display_floor: np.ndarray | None = None    # (H, W, 3) the unseen-feature part of display_stderr
     _history: list = field(default_factory=list, repr=False)
 
     @property
@@ -107,6 +108,13 @@ class Reference:
         return float(self.se_lsb.max())
 
     @property
+    def floor_bound(self) -> int:
+        """Pixels whose reported SE is the unseen-feature floor, not the spread of their samples."""
+        if self.display_floor is None:
+            return 0
+        return int(np.sum(np.any((self.display_floor >= self.display_stderr) & (self.display_stderr > 0), axis=-1)))
+
+    @property
     def over_bound(self) -> int:
         """Pixels whose SE is still above the bound (they hit the sample cap)."""
         return int(np.sum(self.se_lsb > self.bound_lsb * (1 + 1e-5)))   # float32 storage slack
@@ -124,14 +132,15 @@ class _Estimates:
     the pixels that get more samples, R replicate sums (`slot` maps a pixel to its row). A pixel's
     mean is the plain mean of all its samples; `cov` is the covariance of that mean."""
 
-    def __init__(self, passes: np.ndarray, spp_per_pass: int, replicates: int):
-        k, npix = passes.shape[:2]
+    def __init__(self, pilot: np.ndarray, spp_per_pass: int, replicates: int):
+        """pilot (npix, K, 3): K independent pilot estimates (means of spp_per_pass samples)."""
+        npix, k = pilot.shape[:2]
         self.r = replicates
         self.mp = k * spp_per_pass                    # pilot samples per pixel
-        self.pilot_mean = passes.mean(axis=0, dtype=np.float64)
+        self.pilot_mean = pilot.mean(axis=1, dtype=np.float64)
         self.pilot_cov = np.zeros((npix, 3, 3))
-        self.varies = np.flatnonzero(np.any(passes.max(axis=0) != passes.min(axis=0), axis=-1))
-        self.pilot_cov[self.varies] = _cov_of_mean(passes[:, self.varies].transpose(1, 0, 2).astype(np.float64))
+        self.varies = np.flatnonzero(np.any(pilot.max(axis=1) != pilot.min(axis=1), axis=-1))
+        self.pilot_cov[self.varies] = _cov_of_mean(pilot[self.varies].astype(np.float64))
         self.mean, self.cov = self.pilot_mean.copy(), self.pilot_cov.copy()
         self.m = np.zeros(npix, np.int64)             # samples per replicate after the pilot
         self.slot = np.full(npix, -1, np.int64)
@@ -192,8 +201,9 @@ class _PixelTracer:
         self.background = mi.Color3f(*scene.desc.background)
         self.sampler = mi.load_dict({"type": "independent"}) if path else None
 
-    def sets(self, pix: np.ndarray, r: int, a: int, seed: int) -> np.ndarray:
-        """(len(pix), r, 3): for each pixel, r independent sets of a samples, each summed."""
+    def sets(self, pix: np.ndarray, r: int, a: int, seed: int):
+        """For each pixel, r independent sets of a samples: their sums (len(pix), r, 3), and the
+        smallest and largest sample of all r a, per channel (len(pix), 3) each."""
         n = len(pix) * r * a
         # opaque: literal sizes and seeds would be compiled into the kernel, one kernel per call
         sx, sy = (dr.opaque(mi.UInt32, x) for x in _strata(a))
@@ -222,8 +232,19 @@ class _PixelTracer:
         chans = [col[k] + zero for k in range(3)]
         dr.eval(chans)                    # one tracing kernel for the three channels, not one each
         sums = [dr.block_sum(mi.Float64(c), a) for c in chans]   # float64: sets of up to 2^16
-        dr.eval(sums)
-        return np.stack([np.asarray(c, np.float64) for c in sums], -1).reshape(len(pix), r, 3)
+        lo = [dr.block_reduce(dr.ReduceOp.Min, c, r * a) for c in chans]
+        hi = [dr.block_reduce(dr.ReduceOp.Max, c, r * a) for c in chans]
+        dr.eval(sums, lo, hi)
+        sums = np.stack([np.asarray(c, np.float64) for c in sums], -1).reshape(len(pix), r, 3)
+        return sums, np.stack([np.asarray(c, np.float64) for c in lo], -1), \
+            np.stack([np.asarray(c, np.float64) for c in hi], -1)
+
+    def chunked(self, pix: np.ndarray, r: int, a: int, rng: np.random.Generator):
+        """sets() over pixels pix in launches of at most _CHUNK_RAYS rays."""
+        per_chunk = max(1, _CHUNK_RAYS // int(a * r))
+        for k in range(0, len(pix), per_chunk):
+            g = pix[k:k + per_chunk]
+            yield g, *self.sets(g, r, a, seed=rng.integers(1 << 32))
 
 
 def _dilate(mask: np.ndarray) -> np.ndarray:
@@ -236,6 +257,28 @@ def _dilate(mask: np.ndarray) -> np.ndarray:
     return out
 
 
+def _window(a: np.ndarray, op) -> np.ndarray:
+    """op (np.minimum / np.maximum) over each pixel's 3x3 window of a (H, W, C), edges clamped."""
+    out = a.copy()
+    out[1:] = op(out[1:], a[:-1])
+    out[:-1] = op(out[:-1], a[1:])
+    col = out.copy()
+    out[:, 1:] = op(out[:, 1:], col[:, :-1])
+    out[:, :-1] = op(out[:, :-1], col[:, 1:])
+    return out
+
+
+def _unseen_floor(disp: DisplayTransform, mean: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+                  m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(display, linear) per-channel floor on the SE of pixels whose 3x3 window holds sample
+    values lo..hi: the error if one of the pixel's m samples had been such a value, i.e. a
+    feature covering 1/m of it that every sample missed (see the module docstring)."""
+    base = disp.encode(mean)
+    up, down = (hi - mean) / m[:, None], (lo - mean) / m[:, None]
+    d = np.maximum(np.abs(disp.encode(mean + up) - base), np.abs(disp.encode(mean + down) - base))
+    return d, np.maximum(np.abs(up), np.abs(down))
+
+
 def _noise_db(dse: np.ndarray) -> float:
     mse = float(np.mean(dse ** 2))
     return float("inf") if mse == 0 else 10 * math.log10(1.0 / mse)
@@ -245,8 +288,8 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
                      se_bound_lsb: float = 0.5, target_noise_db: float = 60.0, spp_per_pass: int = 4,
                      min_passes: int = 4, replicates: int = 32, max_spp: int = 1 << 16, seed: int = 0,
                      progress: Callable[[int, float], None] | None = None) -> Reference:
-    """Reference of frame t: `min_passes` pilot passes of `spp_per_pass`, then rounds of
-    `replicates` independent sets per pixel that needs them (see the module docstring)."""
+    """Reference of frame t: a pilot of `min_passes` sets of `spp_per_pass` at every pixel, then
+    rounds of `replicates` independent sets per pixel that needs them (see the module docstring)."""
     if min_passes < 2 or replicates < 2:
         raise ReferenceError(f"min_passes and replicates must be >= 2 to estimate the noise, "
                              f"got {min_passes}, {replicates}")
@@ -260,14 +303,11 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
         raise ReferenceError(f"scene {scene.name!r}: transport 'path' does not support alpha cut-outs "
                              "(Mitsuba's path tracer treats masked surfaces as opaque to shadow rays); "
                              "use direct_shadows")
-    geo = None
+    geo = mscene = integ = None
     if path:
         mscene, integ = path_scene(scene, t), path_integrator(scene.desc.path_max_depth)
     else:
         geo = frame_geometry(scene, t)
-        mscene, integ = geo.mitsuba, SharedShadingIntegrator(geo, cam.position)
-    sens = sensor(cam, spp_per_pass, alpha=path)
-    background = np.asarray(scene.desc.background, np.float64)
     npix, r = width * height, replicates
     start = time.perf_counter()
     history = []
@@ -279,44 +319,51 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
         if progress:
             progress(int(round(spp)), db)
 
-    passes = np.empty((min_passes, npix, 3), np.float32)
-    disp = None
-    for n in range(min_passes):
-        img = np.asarray(mi.render(mscene, sensor=sens, integrator=integ, seed=((seed << 16) + n) & 0xFFFFFFFF,
-                                   spp=spp_per_pass), np.float64)
-        if path:   # rgba: composite the fraction of samples that missed over the background
-            img = img[..., :3] + (1.0 - img[..., 3:4]) * background
-        if not np.all(np.isfinite(img)):
-            raise ReferenceError(f"scene {scene.name!r} frame {t}: pass {n} produced NaN/Inf")
-        if disp is None:    # the key of one pass is the converged key to a few digits
-            disp = DisplayTransform.from_reference(img)
-        passes[n] = img.reshape(-1, 3)
-        if progress and n < min_passes - 1:
-            progress((n + 1) * spp_per_pass, float("nan"))
-    est = _Estimates(passes, spp_per_pass, r)
-    del passes
-    dse = np.zeros((npix, 3))
-    dse[est.varies] = _display_se(disp, est.mean[est.varies], est.cov[est.varies])
+    tracer = _PixelTracer(scene, cam, path, mscene, integ, geo)
+    # Pilot: min_passes independent jittered sets of spp_per_pass at every pixel, which also
+    # give each pixel's smallest and largest sample (the unseen-feature floor below).
+    pilot = np.empty((npix, min_passes, 3), np.float32)
+    lo, hi = np.empty((npix, 3)), np.empty((npix, 3))
+    for g, sums, glo, ghi in tracer.chunked(np.arange(npix), min_passes, spp_per_pass,
+                                            np.random.default_rng([seed, 8])):
+        if not np.all(np.isfinite(sums)):
+            raise ReferenceError(f"scene {scene.name!r} frame {t}: the pilot produced NaN/Inf")
+        pilot[g], lo[g], hi[g] = sums / spp_per_pass, glo, ghi
+    # the key of one pass is the converged key to a few digits
+    disp = DisplayTransform.from_reference(pilot[:, 0].reshape(height, width, 3))
+    est = _Estimates(pilot, spp_per_pass, r)
+    del pilot
+    dse_s = np.zeros((npix, 3))           # from the spread of the samples
+    dse_s[est.varies] = _display_se(disp, est.mean[est.varies], est.cov[est.varies])
+    floor_d, floor_l = np.zeros((npix, 3)), np.zeros((npix, 3))
+
+    def update_floor(where: np.ndarray):
+        wlo = _window(lo.reshape(height, width, 3), np.minimum).reshape(npix, 3)[where]
+        whi = _window(hi.reshape(height, width, 3), np.maximum).reshape(npix, 3)[where]
+        floor_d[where], floor_l[where] = _unseen_floor(disp, est.mean[where], wlo, whi, est.spp[where])
+
+    update_floor(np.flatnonzero(np.any(_window(hi.reshape(height, width, 3), np.maximum) >
+                                       _window(lo.reshape(height, width, 3), np.minimum), axis=-1).ravel()))
+    dse = np.maximum(dse_s, floor_d)
     record(est, dse)
 
-    tracer = _PixelTracer(scene, cam, path, mscene, integ, geo)
     cap = max((max_spp - est.mp) // r, 1)         # samples per replicate
     bound = se_bound_lsb * LSB
     target_mse = 10 ** (-target_noise_db / 10)
     rounds = tightened = 0
     while True:
-        worst = dse.max(axis=-1)
+        worst_s, worst_f = dse_s.max(axis=-1), floor_d.max(axis=-1)
+        worst = np.maximum(worst_s, worst_f)
         over = (worst > bound) & (est.m < cap)
         spp = est.spp
-        want = (np.ceil(spp * (worst / bound) ** 2 * _MARGIN) - spp) / r      # per replicate
+        # samples the bound asks for: SE ~ 1/sqrt(M) for the spread of the samples, ~ 1/M for
+        # the unseen-feature floor
+        need = np.maximum(spp * (worst_s / bound) ** 2, spp * (worst_f / bound)) * _MARGIN
+        want = (np.ceil(need) - spp) / r      # per replicate
         if rounds == 0:
-            # Every pixel with any variance in the pilot, and its neighbours (an edge the
-            # pilot missed in one pixel shows next door; linear variance, as the display
-            # clip can hide it), gets its replicates.
-            noisy = np.zeros(npix, bool)
-            noisy[est.varies] = True
-            over |= _dilate(noisy.reshape(height, width)).ravel()
-            want = np.maximum(want, _FIRST)
+            # A pilot spread of min_passes estimates is a rough noise estimate: every pixel
+            # whose samples vary gets one set of replicates (R - 1 degrees of freedom).
+            over[est.varies] = True
         if not over.any():
             mse = float(np.mean(dse ** 2))
             improvable = np.any((worst > 0) & (est.m < cap))
@@ -328,32 +375,35 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
             continue
         pix = np.flatnonzero(over)
         m = est.m[pix]
-        # a power of two (a square-ish jittered grid); the first set at most
-        # _FIRST_MAX, later ones at most 3 m; never past the cap
+        # a power of two (a square-ish jittered grid); the first set _FIRST_MIN.._FIRST_MAX,
+        # later ones at most 3 m; never past the cap
         most = np.where(m == 0, _FIRST_MAX, 2 ** np.floor(np.log2(np.maximum((_GROWTH - 1) * m, 1))))
-        add = np.minimum(2 ** np.ceil(np.log2(np.maximum(want[pix], 1))), most)
+        add = np.minimum(2 ** np.ceil(np.log2(np.maximum(want[pix], np.where(m == 0, _FIRST_MIN, 1)))), most)
         add = np.minimum(add, cap - m).astype(np.int64)
         rng = np.random.default_rng([seed, 9, rounds])
         for a in np.unique(add):          # one set size per group of pixels
-            group = pix[add == a]
-            per_chunk = max(1, _CHUNK_RAYS // int(a * r))
-            for k in range(0, len(group), per_chunk):
-                g = group[k:k + per_chunk]
-                sums = tracer.sets(g, r, int(a), seed=rng.integers(1 << 32))
+            for g, sums, glo, ghi in tracer.chunked(pix[add == a], r, int(a), rng):
                 if not np.all(np.isfinite(sums)):
                     raise ReferenceError(f"scene {scene.name!r} frame {t}: round {rounds} produced NaN/Inf")
                 est.add(g, int(a), sums)
-        dse[pix] = _display_se(disp, est.mean[pix], est.cov[pix])
+                lo[g], hi[g] = np.minimum(lo[g], glo), np.maximum(hi[g], ghi)
+        dse_s[pix] = _display_se(disp, est.mean[pix], est.cov[pix])
+        # the floor moves where a pixel or a neighbour got samples (new extremes, or more samples)
+        touched = np.zeros(npix, bool)
+        touched[pix] = True
+        update_floor(np.flatnonzero(_dilate(touched.reshape(height, width)).ravel()))
+        dse = np.maximum(dse_s, floor_d)
         rounds += 1
         record(est, dse)
 
     spp_map = est.spp.reshape(height, width)
-    lin_se = np.sqrt(np.maximum(np.diagonal(est.cov, axis1=1, axis2=2), 0.0))
+    lin_se = np.maximum(est.linear_se(), floor_l)
     return Reference(est.mean.reshape(height, width, 3).astype(np.float32),
                      lin_se.reshape(height, width, 3).astype(np.float32),
                      int(round(spp_map.mean())), min_passes, time.perf_counter() - start, _noise_db(dse),
                      spp_map=spp_map.astype(np.int32), display_stderr=dse.reshape(height, width, 3).astype(np.float32),
-                     bound_lsb=float(se_bound_lsb), rounds=rounds, _history=history)
+                     bound_lsb=float(se_bound_lsb), rounds=rounds, _history=history,
+                     display_floor=floor_d.reshape(height, width, 3).astype(np.float32))
 
 
 def trace_pixel_centres(scene: ResolvedScene, t: int, width: int, height: int):

@@ -37,9 +37,12 @@ def test_two_seeds_differ_as_their_reported_errors_say(two_seeds):
     assert np.mean(zl <= 3.5) >= 0.999
     # Not only the tail: where there is noise, z is ~ |N(0, 1)| (mean 0.80), neither over- nor
     # understated (a reported error twice the truth would pass the tail test alone).
-    noisy = (a.display_stderr.max(-1) > 0.01 * LSB) & (b.display_stderr.max(-1) > 0.01 * LSB)
+    # Channels whose reported error is the unseen-feature floor (a bound on what no sample saw,
+    # not a spread) are left out; that floor is tested against a uniform reference below.
+    noisy = ((a.display_stderr > 0.01 * LSB) & (b.display_stderr > 0.01 * LSB)
+             & (a.display_floor < a.display_stderr) & (b.display_floor < b.display_stderr))
     zc = _z(disp.encode(a.image), disp.encode(b.image), a.display_stderr, b.display_stderr)[noisy]
-    assert noisy.sum() > 150
+    assert noisy.any(-1).sum() > 150
     assert 0.6 < np.median(zc) < 0.9, np.median(zc)     # |N(0,1)| median 0.674, t_62 ~0.68
 
 
@@ -133,3 +136,61 @@ def test_agreement_fails_a_frame_of_background_only(tmp_path):
     assert a.reference_se_bound_lsb == 0.5 and a.as_dict()["targets_met"]["objects_visible"] is False
     seen = check_agreement(scene, 32, 24, samples=4, cache=ReferenceCache(tmp_path), progress=False)
     assert seen.visible_fraction > 0.5 and seen.meets_targets()["objects_visible"]
+
+
+def _sliver_scene(transport: str, h: int):
+    """High contrast below a pixel: white slivers 0.05 px wide at several angles over a black
+    background (as a glTF file without a background gets) and over a grey panel, and a lit quad
+    tilted out of the image plane. A quarter of the frame is black: more would make the display
+    key (the log-average) so low that 1/65536 of a white sample in a black pixel exceeds the bound."""
+    from scenes.description import Transform
+    px = 2 * 5 * np.tan(np.radians(15)) / h            # world size of a pixel at the origin
+    white = (1.0, 1.0, 1.0)
+    slivers = tuple(quad_object(f"sliver_{i}", (0.05 * px, 1.4), at, white, deg)
+                    for i, (at, deg) in enumerate((((1.25, 0.1, 0.2), 7.0), ((1.5, -0.1, 0.2), -38.0),
+                                                   ((-0.3, 0.2, 0.2), 61.0), ((0.45, 0.0, 0.2), 89.3))))
+    lit = quad_object("lit", (0.9, 0.7), (-0.2, -0.35, 0.1), (0.9, 0.8, 0.7))
+    lit = lit.model_copy(update={"transform": Transform(translate=(-0.9, -0.35, 0.1), rotate_axis=(1, 1, 0.3),
+                                                        rotate_deg=35.0)})
+    panel = quad_object("panel", (3.5, 4.0), (-0.75, 0.0, -0.5), (0.6, 0.6, 0.6))
+    cam = Camera(position=(0, 0, 5), target=(0, 0, 0), yfov_deg=30, near=0.5, far=50)
+    return ResolvedScene(Scene(
+        name=f"slivers_{transport}", transport=transport, camera=cam, objects=(*slivers, lit, panel),
+        lights=(PointLight(position=(-1.0, 1.5, 3.0), intensity=(5.0, 5.0, 5.0)),) if transport != "unlit" else (),
+        ambient=(0.1, 0.1, 0.1), background=(0.0, 0.0, 0.0)))
+
+
+def _uniform(scene, w, h, passes=16, spp=4096):
+    """Mean and display SE of `passes` independent Mitsuba passes, and the display transform."""
+    geo, cam = frame_geometry(scene, 0), scene.camera(0, w, h)
+    integ, sens = SharedShadingIntegrator(geo, cam.position), sensor(cam, spp)
+    p = np.stack([np.asarray(mi.render(geo.mitsuba, sensor=sens, integrator=integ, seed=2000 + k, spp=spp),
+                             np.float64) for k in range(passes)])
+    disp = DisplayTransform.from_reference(p.mean(0))
+    enc = np.stack([disp.encode(x) for x in p])
+    return p.mean(0), enc.std(0, ddof=1) / np.sqrt(passes), disp
+
+
+@pytest.mark.parametrize("transport", ["unlit", "direct_shadows"])
+def test_sub_pixel_slivers_on_black_are_found(transport):
+    """No pixel with sub-pixel structure keeps the pilot's few samples and an SE of 0: the
+    reference (the cache's pilot, 4 x 2 spp, which misses a 0.05-px sliver in 2/3 of its pixels)
+    agrees with a uniform 65536-spp one within the bound beyond both references' noise."""
+    scene, w, h = _sliver_scene(transport, 32), 48, 32
+    ad = render_reference(scene, 0, w, h, spp_per_pass=2, seed=5)
+    uni, se_u, disp = _uniform(scene, w, h)
+    d = np.abs(disp.encode(ad.image) - disp.encode(uni))
+    noise = np.sqrt(ad.display_stderr.astype(np.float64) ** 2 + se_u ** 2 + FLOOR ** 2)
+    within = (d <= 0.5 * LSB + 3.5 * noise).all(-1)
+    assert within.mean() >= 0.999, (np.sum(~within), (d - 3.5 * noise).max() / LSB)
+    assert d.max() <= 2 * LSB, d.max() / LSB
+    # A few sliver pixels on black stay over the bound at the cap (their samples' own spread,
+    # stratified 2048 to a set, is that large); none is held there by the unseen-feature floor.
+    over = ad.se_lsb > 0.5 * (1 + 1e-5)
+    assert ad.over_bound == over.sum() < 0.02 * w * h and np.all(ad.spp_map[over] >= (1 << 16) - 32)
+    assert np.all(ad.display_floor.max(-1)[over] < 0.5 * LSB)
+    # the slivers' pixels hold samples; what the pilot alone keeps is flat across its window
+    sliver = (disp.encode(uni) > 0.02).any(-1) & (disp.encode(uni) < 0.9).all(-1) & (se_u.max(-1) > 0)
+    assert sliver.sum() >= 60 and np.all(ad.spp_map[sliver] > 8)
+    pilot_only = ad.spp_map == 8
+    assert pilot_only.mean() > 0.1 and np.all(d[pilot_only] <= 0.01 * LSB)   # float32 film sums
