@@ -46,6 +46,19 @@ def test_two_seeds_differ_as_their_reported_errors_say(two_seeds):
     assert 0.6 < np.median(zc) < 0.9, np.median(zc)     # |N(0,1)| median 0.674, t_62 ~0.68
 
 
+def test_two_seeds_of_the_atrium_differ_as_their_reported_errors_say():
+    """Lit, shadowed and textured, with the cache's 8-sample pilot: without the unseen-feature
+    floor, edges that no sample of one seed saw put pixels at z ~ 130."""
+    scene = get_scene("atrium")
+    a, b = (render_reference(scene, 0, 96, 54, seed=s, spp_per_pass=2) for s in (0, 1))
+    disp = DisplayTransform.from_reference(a.image)
+    z = _z(disp.encode(a.image), disp.encode(b.image), a.display_stderr, b.display_stderr)
+    assert np.mean(z.max(axis=-1) <= 3.5) >= 0.999, np.sort(z.max(-1).ravel())[-10:]
+    noisy = ((a.display_stderr > 0.01 * LSB) & (b.display_stderr > 0.01 * LSB)
+             & (a.display_floor < a.display_stderr) & (b.display_floor < b.display_stderr))
+    assert noisy.any(-1).sum() > 1000 and 0.6 < np.median(z[noisy]) < 0.8, np.median(z[noisy])
+
+
 def test_bound_holds_and_samples_go_where_the_variance_is(two_seeds):
     for ref in two_seeds:
         assert ref.over_bound == 0 and ref.se_max_lsb <= 0.5 * (1 + 1e-5)
@@ -82,12 +95,12 @@ def test_adaptive_reference_agrees_with_a_uniform_high_spp_one():
     se_u = enc.std(0, ddof=1) / np.sqrt(len(passes))          # display SE of the uniform mean
     d = disp.encode(ad.image) - disp.encode(uni)
     assert ad.over_bound == 0 and ad.spp_mean < 0.1 * 16384
-    # Every pixel within the bound, beyond the two references' own noise. (A pure |z| test at
-    # every pixel fails on the odd pixel that a straight edge barely clips: a sliver of < 0.5 % of
-    # its area that all 1040 samples miss, which costs up to ~0.5 LSB and shows no variance.)
+    # Every pixel within its reported error: a sliver of a pixel that a straight edge barely
+    # clips and that every sample misses is covered by the unseen-feature floor (without it,
+    # ~0.5 LSB beyond 3.5 sigma at such pixels).
     noise = np.sqrt(ad.display_stderr.astype(np.float64) ** 2 + se_u ** 2 + FLOOR ** 2)
-    assert np.all(np.abs(d) <= 0.5 * LSB + 3.5 * noise), (np.abs(d) - 3.5 * noise).max() / LSB
-    assert np.mean(np.abs(d) <= 3.5 * noise) >= 0.995
+    assert np.all(np.abs(d) <= 4.5 * noise), (np.abs(d) / noise).max()
+    assert np.mean(np.abs(d) <= 3.5 * noise) >= 0.999
     # no bias from the stopping rule: signed errors over the edge pixels average out
     edge = ad.display_stderr.max(-1) > 0.05 * LSB
     zs = (d / noise).mean(axis=-1)[edge]     # per pixel: variance <= 1 with no bias
