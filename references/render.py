@@ -5,22 +5,36 @@ spread of independent estimates, in linear HDR and, through the Jacobian of the 
 transform at the mean (spec section 8, key frozen from the first pass, channels' covariance
 kept), in display units. The bound is on the worst channel, 0.5 LSB of 8 bits by default.
 
-1. Pilot: `min_passes` uniform Mitsuba passes (multi-jittered sampler, `spp_per_pass` samples,
-   box filter, float32 film). Its mean and the spread of its passes are the pilot component.
-2. Every pixel whose pilot passes differ at all (linear domain: the display clip can hide
-   noise), and its 3x3 neighbours (an edge the pilot missed in one pixel shows next door), gets
-   R = `replicates` independent sets of `_FIRST` samples, then rounds: pixels over the bound get
-   one more set per replicate, of a power of two near what the estimated variance asks for,
-   1.2 M (se / bound)^2 - M for M samples now (SE ~ 1/sqrt(M) if stratification does not help,
-   so a ceiling), at most 3x the replicate's size so a poor estimate is refreshed before much is
-   spent. A set is a jittered grid over the pixel, traced through the same Mitsuba sensor and
-   BVH with `shading.trace_visible` and `shading.shade` (the pilot integrator's and the raster's
-   function); transport 'path' calls Mitsuba's path integrator per ray the same way (its other
-   dimensions from an independent sampler), so it gets the same rounds. All R replicates of a
-   pixel hold the same count, so mean = (M_p pilot mean + R m replicate mean) / M, the plain
-   mean, and cov = ((M_p / M)^2 cov_pilot + (R m / M)^2 cov_replicates), the latter with R - 1
-   degrees of freedom however the samples inside a replicate are stratified.
-3. Rounds stop when every pixel meets the bound or holds `max_spp`; pixels still over it are
+1. Pilot: `min_passes` independent sets of `spp_per_pass` samples at every pixel (the cache uses
+   4 x 2), each a jittered grid over the pixel traced through the Mitsuba sensor and BVH with
+   `shading.trace_visible` and `shading.shade` (the raster's function); transport 'path' calls
+   Mitsuba's path integrator per ray the same way (its other dimensions from an independent
+   sampler). The spread of the sets is the pilot's noise estimate; each pixel also keeps its
+   smallest and largest sample, per channel, over everything it is ever given.
+2. The unseen-feature floor. A pixel whose samples all missed a sliver of another surface shows
+   no variance, however bright the sliver. But such a sliver usually shows next door (an edge,
+   a thin line, a texel boundary, a shadow continues into a neighbour), so every pixel whose 3x3
+   window holds sample values lo..hi gets a floor on its SE: the display-domain error if one of
+   its M samples had been lo or hi, i.e. |encode(mean + (c - mean) / M) - encode(mean)| for
+   c = lo, hi (a feature of 1/M of the pixel, which M samples miss with probability ~ 1/e; the
+   same size as the SE one such hit would give). It falls as 1/M, so the pixel is refined until
+   M ~ (contrast / bound): on a black background next to white, ~1e4 samples. A pixel claims
+   SE 0 only when every sample in its window had one value. The reported SE is the larger of
+   the floor and the spread of the samples (`display_floor` keeps the floor). Values, not hit
+   primitives or objects, decide: the floor needs the contrast, and a change of triangle or
+   object with no change of value (a smooth mesh, glTF primitives of one material) needs none.
+3. Rounds: every pixel whose pilot samples vary (the spread of 4 sets is a rough estimate)
+   and every pixel over the bound gets R = `replicates` independent sets of `_FIRST_MIN` ..
+   `_FIRST_MAX` samples, then rounds: pixels over the bound get one more set per replicate, of a
+   power of two near what they ask for, 1.2 M (se / bound)^2 - M for the spread (SE ~ 1/sqrt(M)
+   if stratification does not help, so a ceiling) or 1.2 M (floor / bound) - M for the floor, at
+   most 3x the replicate's size so a poor estimate is refreshed before much is spent. After
+   each round the floors of the refined pixels and their neighbours are recomputed from the new
+   extremes, so a sliver found in one pixel is followed into the next (region growing). All R
+   replicates of a pixel hold the same count, so mean = (M_p pilot mean + R m replicate mean) / M,
+   the plain mean, and cov = ((M_p / M)^2 cov_pilot + (R m / M)^2 cov_replicates), the latter
+   with R - 1 degrees of freedom however the samples inside a replicate are stratified.
+4. Rounds stop when every pixel meets the bound or holds `max_spp`; pixels still over it are
    counted (`over_bound`), never hidden. If the mean noise (the secondary figure,
    10 log10(1 / mean SE^2)) is still below `target_noise_db`, the bound is tightened.
 
@@ -32,10 +46,11 @@ E[(S - M mu)(1/M - E[1/M])], so by Cauchy-Schwarz
     |E[S / M] - mu| <= sqrt(E[(S - M mu)^2]) sd(1/M)  ~  SE x (coefficient of variation of M),
 a fraction of the pixel's own SE, which the bound keeps below 0.5 LSB; M varies little between
 seeds because the last decision is made from at least a quarter of the final count.
-tests/test_reference_adaptive.py measures the result against a uniform 16384-spp reference and
-the reported SE against a second seed. What no sampling rule sees: a sliver of another surface
-covering well under 1 % of a pixel that all of its samples miss shows no variance (up to ~0.5 LSB
-in that test). Noise-free pixels stop after the pilot with SE exactly 0.
+tests/test_reference_adaptive.py measures the result against uniform 16384- and 65536-spp
+references (an edge scene, 0.05-px white slivers on black) and the reported SE against a second
+seed. What no rule that looks only at samples sees: a feature well under 1/8 of a pixel (the
+pilot's reach) whose neighbours show nothing of it either, e.g. an isolated sub-pixel dot, or a
+thin object between two surfaces of one colour along its whole length.
 """
 from __future__ import annotations
 
