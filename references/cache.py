@@ -5,8 +5,10 @@ the scene's content hash (description, meshes, textures), the frame, the camera 
 resolution, the convergence settings and the source of the shading, reference and display code
 (the stopping rule measures noise through the display transform). Each EXR carries the image,
 the linear standard error (`stderr.R/G/B`), the display-domain standard error
-(`display_stderr.R/G/B`, 1 = full scale) and the samples per pixel (`spp`), and its header the
-bound, seconds, mean/max spp, 99.9th percentile and max SE in LSB and the pixels over the bound. Files are written atomically (references/exr.py), so an
+(`display_stderr.R/G/B`, 1 = full scale), the part of it that is the unseen-feature floor
+(`display_floor.R/G/B`, references/render.py) and the samples per pixel (`spp`), and its header
+the bound, seconds, mean/max spp, 99.9th percentile and max SE in LSB, the pixels over the bound
+and those whose SE is the floor. Files are written atomically (references/exr.py), so an
 interrupted render leaves nothing; a file that fails to read, lacks its key or holds NaN/Inf is
 reported, removed and rendered again.
 """
