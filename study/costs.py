@@ -68,9 +68,14 @@ def measure(scene, width: int, height: int, configs: list, displays: dict, extra
                 if inp.cameras:
                     kw["cameras"] = (scene.camera(0, width, height), scene.camera(0, width, height))
                 if inp.extra_samples:
-                    mask = tech.invalid_mask(frame, far=kw["far"])
-                    kw["supersampled"], kw["mask"] = frame["color"], mask
-                resolve_ms = median_ms(lambda: tech.process(frame, jitter=jit, **kw))
+                    # Its mask depends on its history, so each call makes it (the technique's work);
+                    # the extra samples' shading is extra_ms below.
+                    def step():
+                        mask = tech.invalid_mask(frame, far=kw["far"])
+                        tech.process(frame, jitter=jit, supersampled=frame["color"], mask=mask, **kw)
+                    resolve_ms = median_ms(step)
+                else:
+                    resolve_ms = median_ms(lambda: tech.process(frame, jitter=jit, **kw))
             extra_ms = 0.0
             if inp.extra_samples:
                 frac = float(extra_spp.get(c.label, 0.0))

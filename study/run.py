@@ -20,7 +20,7 @@ from scenes import ResolvedScene
 from .config import Profile, TechniqueConfig, get_profile
 from .execute import Executor, execute
 from .plan import Planner
-from .tasks import Context, load_scene
+from .tasks import Context, _deterministic, load_scene
 
 
 def is_animated(scene: ResolvedScene) -> bool:
@@ -197,7 +197,8 @@ class Study:
                 if test.scene not in refs:
                     refs[test.scene] = DisplayTransform.from_reference(
                         self.reference(scene, 0, test.width, test.height).image)
-                got = C.measure(scene, test.width, test.height, [c], {0: refs[test.scene]}, {c.label: extra})[c.label]
+                got = _deterministic(C.measure)(scene, test.width, test.height, [c], {0: refs[test.scene]},
+                                                {c.label: extra})[c.label]
                 out[(test.scene, c.label)] = store.save_record(path, key, got)
         return out
 

@@ -34,7 +34,8 @@ def _deterministic(fn):
             raise
         except (SceneError, RasterError, ReferenceError, ValueError, KeyError, TypeError) as exc:
             what = fn.__name__.removesuffix("_task")
-            raise TaskError(f"{what} of {args[1]!r}: {type(exc).__name__}: {exc}") from None
+            where = getattr(args[0], "name", None) or args[1]
+            raise TaskError(f"{what} of {where!r}: {type(exc).__name__}: {exc}") from None
     return wrapper
 
 
