@@ -5,31 +5,37 @@ from click.testing import CliRunner
 
 from study.cli import main
 
-MOVING = """
+def moving_scene(frames: int = 4, size=(40, 24), segments: int = 12) -> str:
+    """A ball moving over a checkered floor, direct light: the study tests' animated scene."""
+    w, h = size
+    return f"""
 name = "tiny_moving"
 transport = "direct"
-frames = 4
+frames = {frames}
 ambient = [0.2, 0.2, 0.2]
 background = [0.1, 0.1, 0.12]
-resolution = { quick = [40, 24], full = [80, 48] }
+resolution = {{ quick = [{w}, {h}], full = [{2 * w}, {2 * h}] }}
 [camera]
 position = [0.0, 0.5, 3.0]
 target = [0.0, 0.3, 0.0]
 yfov_deg = 40
 [[objects]]
 name = "ball"
-mesh = { kind = "sphere", radius = 0.4, segments = 12, smooth = true }
-material = { albedo = [0.9, 0.4, 0.1] }
-transform = { translate = [-0.5, 0.4, 0.0] }
-motion = { velocity = [0.12, 0.0, 0.0] }
+mesh = {{ kind = "sphere", radius = 0.4, segments = {segments}, smooth = true }}
+material = {{ albedo = [0.9, 0.4, 0.1] }}
+transform = {{ translate = [-0.5, 0.4, 0.0] }}
+motion = {{ velocity = [0.12, 0.0, 0.0] }}
 [[objects]]
 name = "floor"
-mesh = { kind = "box", size = [6.0, 0.1, 6.0] }
-material = { albedo = [0.5, 0.5, 0.5], texture = { kind = "checker", squares = 24 } }
+mesh = {{ kind = "box", size = [6.0, 0.1, 6.0] }}
+material = {{ albedo = [0.5, 0.5, 0.5], texture = {{ kind = "checker", squares = 24 }} }}
 [[lights]]
 type = "directional"
 direction = [-0.3, -1.0, -0.5]
 """
+
+
+MOVING = moving_scene()
 
 STILL = """
 name = "tiny_still"

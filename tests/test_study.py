@@ -6,32 +6,9 @@ import pytest
 from click.testing import CliRunner
 
 from study.cli import main
+from study_fixtures import moving_scene
 
-SCENE = """
-name = "tiny_moving"
-transport = "direct"
-frames = 5
-ambient = [0.2, 0.2, 0.2]
-background = [0.1, 0.1, 0.12]
-resolution = { quick = [48, 27], full = [96, 54] }
-[camera]
-position = [0.0, 0.5, 3.0]
-target = [0.0, 0.3, 0.0]
-yfov_deg = 40
-[[objects]]
-name = "ball"
-mesh = { kind = "sphere", radius = 0.4, segments = 16, smooth = true }
-material = { albedo = [0.9, 0.4, 0.1] }
-transform = { translate = [-0.5, 0.4, 0.0] }
-motion = { velocity = [0.12, 0.0, 0.0] }
-[[objects]]
-name = "floor"
-mesh = { kind = "box", size = [6.0, 0.1, 6.0] }
-material = { albedo = [0.5, 0.5, 0.5], texture = { kind = "checker", squares = 24 } }
-[[lights]]
-type = "directional"
-direction = [-0.3, -1.0, -0.5]
-"""
+SCENE = moving_scene(frames=5, size=(48, 27), segments=16)
 
 
 @pytest.fixture
