@@ -11,7 +11,6 @@ figures made from their results are study.report's.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -182,7 +181,3 @@ class Planner:
         self.plan.tasks[key] = Task(key, "agreement", T.agreement_task, (
             self.ctx, spec, w, h, self.agreement_samples, self.ref_settings, key, str(path)),
             (self._reference(spec, scene, 0, w, h),))
-
-
-def finite_or_none(v):
-    return None if v is None or (isinstance(v, float) and not math.isfinite(v)) else v
