@@ -67,6 +67,20 @@ def run_cli(args, code=0):
     return r
 
 
+def run_tiny_study(root, *techniques):
+    """A real study of the two tiny scenes under `root` (its own cache); returns its output folder."""
+    import pytest
+    scenes = write_scenes(root)
+    out = root / "out"
+    args = ["run", "--scenes", ",".join(scenes), "--no-agreement", "--out", out]
+    for t in techniques:
+        args += ["--techniques", t]
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("TAA_STUDY_CACHE", str(root / "cache"))
+        run_cli(args)
+    return out
+
+
 def summary(out):
     return json.loads((out / "manifest.json").read_text())["summary"]
 

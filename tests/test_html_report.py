@@ -20,7 +20,7 @@ from study import html_report
 from study.html_report import ReportDataError
 
 sys.path.insert(0, str(Path(__file__).parent))
-from study_fixtures import run_cli, write_scenes  # noqa: E402
+from study_fixtures import run_tiny_study  # noqa: E402
 
 
 def _png(path: Path, arr) -> None:
@@ -143,13 +143,7 @@ def test_bad_data_is_refused_naming_the_field(tmp_path, edit, words):
 def tiny_study(tmp_path_factory):
     """A real study of the two tiny scenes (No AA and the baseline TAA) and its report. Where the
     study does not write report.html itself yet, the report is built here from its folder."""
-    root = tmp_path_factory.mktemp("html_study")
-    scenes = write_scenes(root)
-    out = root / "out"
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("TAA_STUDY_CACHE", str(root / "cache"))
-        run_cli(["run", "--scenes", ",".join(scenes), "--techniques", "noaa", "--techniques", "taa_baseline",
-                 "--no-agreement", "--out", out])
+    out = run_tiny_study(tmp_path_factory.mktemp("html_study"), "noaa", "taa_baseline")
     page = out / "report.html"
     hooked = page.exists()
     if not hooked:

@@ -17,7 +17,7 @@ from study import paper_pdf
 from study.figures import comparison_figure, inset_regions
 
 sys.path.insert(0, str(Path(__file__).parent))
-from study_fixtures import run_cli, write_scenes  # noqa: E402
+from study_fixtures import run_tiny_study  # noqa: E402
 
 H, W = 54, 96
 PAPER = Path(__file__).resolve().parent.parent / "paper"
@@ -108,12 +108,7 @@ def test_paper_builds_from_a_tiny_study_with_every_table_and_figure(tmp_path):
     if why:
         print(f"skipping the PDF build: {why}")
         pytest.skip(why)
-    scenes = write_scenes(tmp_path)
-    out = tmp_path / "out"
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))
-        run_cli(["run", "--scenes", ",".join(scenes), "--techniques", "noaa", "--techniques", "taa_baseline",
-                 "--no-agreement", "--out", out])
+    out = run_tiny_study(tmp_path, "noaa", "taa_baseline")
     paper = tmp_path / "paper"
     paper.mkdir()
     shutil.copy(PAPER / "main.tex", paper / "main.tex")       # the repository's own paper
