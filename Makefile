@@ -4,7 +4,7 @@ STAMP := .venv/.setup-stamp
 
 .PHONY: study test setup clean-cache paper
 
-$(STAMP): pyproject.toml scripts/setup.sh
+$(STAMP): pyproject.toml scripts/setup.sh scripts/apt_install.sh
 	bash scripts/setup.sh
 	touch $(STAMP)
 
