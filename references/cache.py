@@ -104,6 +104,12 @@ class ReferenceCache:
             chans[f"display_floor.{c}"] = ref.display_floor[..., k]
         write_exr(path, chans, header)
 
+    def has(self, scene: ResolvedScene, t: int, width: int, height: int, *, se_bound_lsb=0.5,
+            target_noise_db=60.0, spp_per_pass=2) -> bool:
+        """Whether the reference `get` would return is in the cache (not verified)."""
+        return self.path(scene, self.key(scene, t, width, height, bound_lsb=se_bound_lsb, target=target_noise_db,
+                                         spp_per_pass=spp_per_pass)).exists()
+
     def get(self, scene: ResolvedScene, t: int, width: int, height: int, *, se_bound_lsb=0.5,
             target_noise_db=60.0, spp_per_pass=2, progress=None) -> tuple[Reference, bool]:
         """(reference, was_cached): every pixel's display-domain SE <= se_bound_lsb (8-bit LSB)

@@ -331,6 +331,73 @@ def run(study_file, profile, scene_list, tech_list, out_dir, no_agreement, worke
               _executor(workers, threads, scheduler), sweep=prof.sweep and not tech_list)
 
 
+@main.command()
+@click.argument("study_file", required=False, type=click.Path(dir_okay=False))
+@PROFILE_OPTION
+@click.option("--scenes", "scene_list", default=None, callback=_scene_list,
+              help="Comma-separated scenes (default: the study file's, or every built-in).")
+@click.option("--measure/--no-measure", default=False, show_default=True,
+              help="Time one unit of each kind per scene here (renders and caches frame 0's reference) "
+                   "and extrapolate the study's wall time.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON document instead of the table.")
+def estimate(study_file, profile, scene_list, measure, as_json):
+    """What a study would compute (work units per scene, only what the cache lacks) and, with
+    --measure, what that costs on this machine, extrapolated from one unit of each kind."""
+    from scenes import builtin_names
+    from study import estimate as E
+    from study.config import SPARSE_SWEEP
+    from study.run import Study
+    from study.tasks import TaskError
+    prof = _profile(study_file, profile)
+    names = scene_list or list(prof.scenes) or builtin_names()
+    configs = _techniques((), prof.techniques)
+    _load_scenes(names)
+    study = Study(prof, progress=False)
+    plan = study.plan(names, configs, agreement=prof.agreement, sweep=SPARSE_SWEEP if prof.sweep else ())[0]
+    work = E.work(plan, study.cache)
+    rows, totals = [], {}
+    for name, sw in work.items():
+        row = {"scene": name, "resolution": [sw.width, sw.height], "references": sw.references,
+               "raster_frames": sw.raster_frames, "subframes": sum(sw.subframes.values()),
+               "technique_steps": sum(sw.steps.values()), "technique_frames_judged": sum(sw.judged.values()),
+               "agreement_frames": sw.agreement_frames}
+        if measure:
+            click.echo(f"estimate: measuring {name} at {sw.width}x{sw.height} ...", err=True)
+            try:
+                units = E.measure_units(sw, study.ref_settings, study.cache,
+                                        [c for c in configs if c.label in sw.configs] or configs[:1])
+            except TaskError as exc:
+                _fail(str(exc))
+            row["unit_s"] = {k: v for k, v in units.items() if k != "subframe_s"}
+            row["seconds"] = E.estimate(sw, units)
+            for k, v in row["seconds"].items():
+                totals[k] = totals.get(k, 0.0) + v
+        rows.append(row)
+    doc = {"study": prof.name, "tasks": plan.counts(), "complete": len(plan.cached), "scenes": rows}
+    if measure:
+        doc["seconds"] = totals
+    if as_json:
+        click.echo(_strict_json(doc))
+        return
+    click.echo(f"{prof.name}: tasks to compute {plan.counts() or 'none'}, {len(plan.cached)} complete")
+    head = "scene | res | refs | raster | subframes | steps | judged | agreement"
+    if measure:
+        head += " | ref s/frame | metrics s/frame | est. ref min | est. total min"
+    click.echo(head)
+    for r in rows:
+        line = (f"{r['scene']} | {r['resolution'][0]}x{r['resolution'][1]} | {r['references']} | "
+                f"{r['raster_frames']} | {r['subframes']} | {r['technique_steps']} | "
+                f"{r['technique_frames_judged']} | {r['agreement_frames']}")
+        if measure:
+            u, sec = r["unit_s"], r["seconds"]
+            line += (f" | {u['reference_s']:.1f} | {u['metrics_s']:.3f} | {sec['reference'] / 60:.1f}"
+                     f" | {sec['total'] / 60:.1f}")
+        click.echo(line)
+    if measure:
+        click.echo("extrapolated minutes: " + ", ".join(f"{k} {v / 60:.1f}" for k, v in totals.items())
+                   + " (references of moving scenes taken at frame 0's cost)")
+
+
 def _technique_names(ctx, param, value):
     if not value:
         return value

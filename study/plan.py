@@ -72,12 +72,23 @@ class Plan:
         return out
 
 
+def run_steps(schedule: list, inp) -> list:
+    """What a run's output depends on of its schedule, for its key. A technique with history sees
+    every step; one without sees only the instants it is judged at (and, through motion vectors or
+    cameras, the instant before), so a warm-up it never runs leaves its key alone."""
+    if inp.sampling == "sequence":
+        return [(s.t, s.k, s.keep, s.reset, s.prev_t, s.frame) for s in schedule]
+    moves = inp.cameras or bool({"motion", "prev_depth"} & set(inp.buffers))
+    return [(s.t, s.prev_t if moves else None, s.frame) for s in judged_steps(schedule, inp.sampling)]
+
+
 class Planner:
     def __init__(self, ctx: T.Context, ref_settings: dict, agreement_samples: int | None):
         from .store import Store
         self.ctx, self.ref_settings, self.agreement_samples = ctx, dict(ref_settings), agreement_samples
         self.store = Store(Path(ctx.cache_root))
         self.plan = Plan()
+        self._run_task_of: dict = {}     # run key -> key of the run task that makes it
 
     # -- keys ----------------------------------------------------------------------------------------
     def reference_key(self, scene, t: int, w: int, h: int) -> str:
@@ -103,7 +114,6 @@ class Planner:
         test = Test(scene.name, spec, protocol, list(configs), w, h)
         kept_t = sorted({s.t for s in schedule if s.keep})
         ref_keys = {t: self.reference_key(scene, t, w, h) for t in kept_t}
-        sched = [(s.t, s.k, s.keep, s.reset, s.prev_t, s.frame) for s in schedule]
         missing = []
         for c in configs:
             tech = c.make()
@@ -112,7 +122,7 @@ class Planner:
             test.frame_times[c.label] = {s.frame: s.t for s in judged}
             # Display-space techniques see a display transform built from the reference.
             inputs = [ref_keys[t] for t in kept_t] if inp.display else []
-            key = task_key("run", {"scene": scene.content_hash, "res": (w, h), "schedule": sched,
+            key = task_key("run", {"scene": scene.content_hash, "res": (w, h), "schedule": run_steps(schedule, inp),
                                    "technique": c.key_data()}, inputs, code=[type(tech), *CODE["run"]])
             folder = self.store.folder(protocol.kind, scene.name, key)
             test.run_keys[c.label], test.run_folders[c.label] = key, str(folder)
@@ -140,6 +150,11 @@ class Planner:
             # The metrics task reads every frame of its run: a run with a damaged file is re-made.
             need_run = [c for c in missing if self.store.done(Path(test.run_folders[c.label]),
                                                               test.run_keys[c.label], verify_files=True) is None]
+            # a run another test already plans (a technique without history judged at the same
+            # instants, e.g. under the cold and the warm ghosting protocol) is made once
+            shared = {c.label: self._run_task_of[test.run_keys[c.label]] for c in need_run
+                      if test.run_keys[c.label] in self._run_task_of}
+            need_run = [c for c in need_run if c.label not in shared]
             run_dep = ()
             if need_run:
                 rdeps = tuple(self._reference(spec, scene, t, w, h) for t in kept_t) \
@@ -149,9 +164,10 @@ class Planner:
                     self.ctx, spec, w, h, protocol, need_run, {c.label: test.run_keys[c.label] for c in need_run},
                     {c.label: test.run_folders[c.label] for c in need_run}, self.ref_settings), rdeps)
                 run_dep = (rkey,)
+                self._run_task_of.update({test.run_keys[c.label]: rkey for c in need_run})
             for c in missing:
                 ts = sorted(set(test.frame_times[c.label].values()))
-                deps = run_dep + tuple(self._reference(spec, scene, t, w, h) for t in ts)
+                deps = ((shared[c.label],) if c.label in shared else run_dep) + tuple(self._reference(spec, scene, t, w, h) for t in ts)
                 mkey = test.metrics_keys[c.label]
                 self.plan.tasks[mkey] = Task(mkey, "metrics", T.metrics_task, (
                     self.ctx, spec, w, h, test.run_folders[c.label], test.run_keys[c.label],

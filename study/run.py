@@ -77,8 +77,9 @@ class Study:
         return self.cache.get(scene, t, w, h, **self.ref_settings)[0]
 
     # -- the whole study ----------------------------------------------------------------------------
-    def run(self, specs: list[str], configs: list[TechniqueConfig], agreement: bool = True,
-            sweep: tuple = (), ghosting: bool = True) -> StudyResults:
+    def plan(self, specs: list[str], configs: list[TechniqueConfig], agreement: bool = True,
+             sweep: tuple = (), ghosting: bool = True):
+        """The study's tests and the tasks it must compute: (plan, scenes, statics, ghosts, sweeps)."""
         planner = Planner(self.ctx, self.ref_settings, self.profile.agreement_samples if agreement else None)
         scenes = [(spec, load_scene(spec)) for spec in specs]
         statics, ghosts, sweeps = [], [], []
@@ -94,7 +95,11 @@ class Study:
                 proto = self.profile.ghosting[0] if is_animated(scene) else self.profile.static
                 sweeps.append(planner.add_test(spec, scene, proto, list(sweep), w, h, maps="none"))
             planner.add_agreement(spec, scene, w, h)
-        plan = planner.plan
+        return planner.plan, scenes, statics, ghosts, sweeps
+
+    def run(self, specs: list[str], configs: list[TechniqueConfig], agreement: bool = True,
+            sweep: tuple = (), ghosting: bool = True) -> StudyResults:
+        plan, scenes, statics, ghosts, sweeps = self.plan(specs, configs, agreement, sweep, ghosting)
         counts = plan.counts()
         if plan.tasks:
             self.log(f"study: {len(plan.tasks)} tasks to compute ({', '.join(f'{k} {n}' for k, n in sorted(counts.items()))})"

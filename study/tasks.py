@@ -172,14 +172,15 @@ def metrics_task(ctx: Context, scene_spec: str, w: int, h: int, run_folder: str,
             t = times[f]
             ref = refs[t]
             disp = displays[t]
-            ref8 = disp.to_8bit(ref.image)
+            ref_disp = disp.encode(ref.image)
+            ref8 = np.round(ref_disp * 255.0).astype(np.uint8)   # disp.to_8bit, without encoding twice
             x = images[f]
             if run["output_space"] == "display":
                 x_lin, x_disp = None, np.clip(x.astype(np.float64), 0, 1)
             else:
                 x_lin, x_disp = x, disp.encode(x)
             x8 = np.round(x_disp * 255).astype(np.uint8)
-            per_frame[str(f)], m = M.all_metrics(ref.image, disp.encode(ref.image), ref8, x_lin, x_disp, x8)
+            per_frame[str(f)], m = M.all_metrics(ref.image, ref_disp, ref8, x_lin, x_disp, x8)
             if f in maps_for:
                 maps[f"maps_{f:04d}.exr"] = m
             seq.append((ref8, x8))

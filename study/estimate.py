@@ -1,0 +1,121 @@
+"""What a planned study will compute, in work units, and what those units cost on this machine.
+
+`work(plan)` counts, per scene, what the plan's tasks will do (only tasks not already complete in
+the cache): references to render, distinct raster frames, technique steps (process calls), judged
+technique-frames (the metrics' unit) and agreement checks. `measure_units` times one of each unit
+per scene here (a reference of frame 0 through the cache, so a measured reference is not wasted;
+raster and resolve through study.costs; the metrics of one technique-frame), and `estimate`
+multiplies. It is an extrapolation: a moving scene's references are assumed to cost what its
+frame 0 costs, and sparse supersampling's extra samples are taken at the share its mask asks for
+on a converged frame.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from scenes.jitter import TAA_PERIOD, halton_offset
+
+from .protocols import judged_steps
+
+
+@dataclass
+class SceneWork:
+    scene: str
+    spec: str
+    width: int
+    height: int
+    references: int = 0
+    raster_frames: int = 0                                 # distinct 1-spp raster frames
+    steps: dict = field(default_factory=dict)              # label -> process calls
+    subframes: dict = field(default_factory=dict)          # label -> supersample sub-frames rendered
+    judged: dict = field(default_factory=dict)             # label -> technique-frames judged
+    agreement_frames: int = 0                               # raster frames the agreement check averages
+    configs: dict = field(default_factory=dict)            # label -> TechniqueConfig
+
+
+def _get(out: dict, spec: str, scene, w: int, h: int) -> SceneWork:
+    return out.setdefault(scene.name, SceneWork(scene.name, spec, w, h))
+
+
+def work(plan, cache=None) -> dict[str, SceneWork]:
+    """Per scene, the units the plan's tasks will compute (a reference `cache` holds is no work)."""
+    from .tasks import load_scene
+    out: dict[str, SceneWork] = {}
+    label_of = {folder: label for test in plan.tests for label, folder in test.run_folders.items()}
+    for task in plan.tasks.values():
+        if task.kind == "reference":
+            _, spec, t, w, h, settings = task.args
+            scene = load_scene(spec)
+            sw = _get(out, spec, scene, w, h)
+            if cache is None or not cache.has(scene, t, w, h, **settings):
+                sw.references += 1
+        elif task.kind == "agreement":
+            _, spec, w, h, samples = task.args[:5]
+            _get(out, spec, load_scene(spec), w, h).agreement_frames += samples + 1
+        elif task.kind == "run":
+            _, spec, w, h, protocol, configs = task.args[:6]
+            scene = load_scene(spec)
+            sw = _get(out, spec, scene, w, h)
+            schedule = protocol.schedule(scene)
+            frames = set()      # as study.protocols.FrameSource memoises them
+            for c in configs:
+                inp = c.make().inputs
+                sw.configs[c.label] = c
+                steps = schedule if inp.sampling == "sequence" else judged_steps(schedule, inp.sampling)
+                sw.steps[c.label] = sw.steps.get(c.label, 0) + len(steps)
+                if inp.sampling == "sequence":
+                    frames |= {(s.t, tuple(halton_offset(s.k, TAA_PERIOD)), s.prev_t) for s in steps}
+                elif inp.sampling == "centre":
+                    frames |= {(s.t, (0.0, 0.0), s.prev_t) for s in steps}
+                else:
+                    sw.subframes[c.label] = sw.subframes.get(c.label, 0) + len(steps) * inp.subframes
+            sw.raster_frames += len(frames)
+        elif task.kind == "metrics":
+            spec, w, h = task.args[1:4]
+            run_folder, frame_times = task.args[4], task.args[6]
+            sw = _get(out, spec, load_scene(spec), w, h)
+            label = label_of[run_folder]
+            sw.judged[label] = sw.judged.get(label, 0) + len(frame_times)
+    return out
+
+
+def measure_units(sw: SceneWork, ref_settings: dict, cache, configs: list) -> dict:
+    """Seconds of one unit of each kind for this scene, measured here (see the module docstring)."""
+    import numpy as np
+
+    from display import DisplayTransform
+
+    from . import costs as C
+    from . import metrics as M
+    from .tasks import load_scene
+    scene = load_scene(sw.spec)
+    ref, cached = cache.get(scene, 0, sw.width, sw.height, **ref_settings)
+    disp = DisplayTransform.from_reference(ref.image)
+    measured = C.measure(scene, sw.width, sw.height, configs, {0: disp}, {})
+    # one technique-frame of metrics: the task's own steps (encode both, judge), on a noisy copy
+    x = (ref.image * (1 + 0.05 * np.random.default_rng(0).standard_normal(ref.image.shape))).astype(np.float32)
+
+    def judge():
+        ref_disp = disp.encode(ref.image)
+        x_disp = disp.encode(x)
+        M.all_metrics(ref.image, ref_disp, np.round(ref_disp * 255).astype(np.uint8), x, x_disp,
+                      np.round(x_disp * 255).astype(np.uint8))
+    metrics_s = C.median_ms(judge, repeats=3, warmup=1) / 1000
+    return {"reference_s": ref.seconds, "reference_cached": cached, "metrics_s": metrics_s,
+            "raster_s": min(m["raster_ms"] for m in measured.values()) / 1000,
+            "resolve_s": {label: m["resolve_ms"] / 1000 for label, m in measured.items()},
+            "subframe_s": {label: m["raster_ms"] / 1000 for label, m in measured.items()}}
+
+
+def estimate(sw: SceneWork, units: dict) -> dict:
+    """Seconds per kind of work for one scene: units x unit costs."""
+    res = units["resolve_s"]
+    out = {"reference": sw.references * units["reference_s"],
+           "raster": sw.raster_frames * units["raster_s"]
+           + sum(n * units["subframe_s"].get(label, units["raster_s"]) for label, n in sw.subframes.items()),
+           "resolve": sum(n * res.get(label, 0.0) for label, n in sw.steps.items()),
+           "metrics": sum(sw.judged.values()) * units["metrics_s"],
+           "agreement": sw.agreement_frames * units["raster_s"]}
+    out["total"] = sum(out.values())
+    return out
+

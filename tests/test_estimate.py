@@ -1,0 +1,62 @@
+"""study.estimate: the work units a plan implies, counted by hand for a tiny study."""
+import json
+
+from study_fixtures import run_cli, write_scenes
+
+STUDY = """
+name = "units"
+scenes = {scenes}
+resolution = "quick"
+agreement = false
+sweep = false
+ghosting_skip = []
+[[techniques]]
+spec = "taa_baseline"
+[[techniques]]
+spec = "noaa"
+[[techniques]]
+label = "SSAA 4x"
+technique = "accumulation"
+params = {{ samples = 4 }}
+[protocols.static]
+history = 16
+checkpoints = [1, 16]
+thesis_history = 16
+[[protocols.ghosting]]
+name = "ghosting"
+frames = 4
+warmup = 0
+[[protocols.ghosting]]
+name = "ghosting_warm"
+frames = 4
+warmup = 16
+"""
+
+
+def _estimate(path):
+    return {r["scene"]: r for r in json.loads(run_cli(["estimate", path, "--json"]).output)["scenes"]}
+
+
+def test_units_of_a_tiny_study_by_hand_and_none_once_it_ran(tmp_path, monkeypatch):
+    monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))
+    scenes = write_scenes(tmp_path)
+    path = tmp_path / "units.toml"
+    path.write_text(STUDY.format(scenes=json.dumps(scenes)))
+    got = _estimate(path)
+    mov, still = got["tiny_moving"], got["tiny_still"]
+    # tiny_moving, 4 frames: one reference per frame (the static test's frame 0 is ghosting's t = 0)
+    assert mov["references"] == 4
+    # raster frames rendered once each: static 16 jittered + 1 centre; cold ghosting 4 jittered +
+    # 4 centre; warm: 16 warm-up at t = 0, then t = 0..3 with jitter 16..19 = 0..3, of which
+    # (t 0, jitter 0, previous 0) is the first warm-up frame: 16 + 3 (its No AA is the cold run's)
+    assert mov["raster_frames"] == 17 + 8 + 19
+    assert mov["subframes"] == 4 * (1 + 4)                   # SSAA 4x: static once, cold ghosting 4
+    assert mov["technique_steps"] == (16 + 4 + 20) + (1 + 4) + (1 + 4)
+    assert mov["technique_frames_judged"] == (2 + 4 + 4) + (1 + 4) + (1 + 4)
+    # tiny_still is not animated: the static test only
+    assert (still["references"], still["raster_frames"], still["subframes"]) == (1, 17, 4)
+    assert (still["technique_steps"], still["technique_frames_judged"]) == (16 + 1 + 1, 2 + 1 + 1)
+
+    run_cli(["run", path, "--out", tmp_path / "out"])
+    doc = json.loads(run_cli(["estimate", path, "--json"]).output)
+    assert doc["tasks"] == {} and doc["scenes"] == []
