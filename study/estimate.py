@@ -29,6 +29,7 @@ class SceneWork:
     steps: dict = field(default_factory=dict)              # label -> process calls
     subframes: dict = field(default_factory=dict)          # label -> supersample sub-frames rendered
     judged: dict = field(default_factory=dict)             # label -> technique-frames judged
+    reference_reads: int = 0                               # references the metrics tasks read (once each)
     agreement_frames: int = 0                               # raster frames the agreement check averages
     configs: dict = field(default_factory=dict)            # label -> TechniqueConfig
 
@@ -41,7 +42,6 @@ def work(plan, cache=None) -> dict[str, SceneWork]:
     """Per scene, the units the plan's tasks will compute (a reference `cache` holds is no work)."""
     from .tasks import load_scene
     out: dict[str, SceneWork] = {}
-    label_of = {folder: label for test in plan.tests for label, folder in test.run_folders.items()}
     for task in plan.tasks.values():
         if task.kind == "reference":
             _, spec, t, w, h, settings = task.args
@@ -71,11 +71,11 @@ def work(plan, cache=None) -> dict[str, SceneWork]:
                     sw.subframes[c.label] = sw.subframes.get(c.label, 0) + len(steps) * inp.subframes
             sw.raster_frames += len(frames)
         elif task.kind == "metrics":
-            spec, w, h = task.args[1:4]
-            run_folder, frame_times = task.args[4], task.args[6]
+            _, spec, w, h, items = task.args[:5]
             sw = _get(out, spec, load_scene(spec), w, h)
-            label = label_of[run_folder]
-            sw.judged[label] = sw.judged.get(label, 0) + len(frame_times)
+            for it in items:
+                sw.judged[it["label"]] = sw.judged.get(it["label"], 0) + len(it["frame_times"])
+            sw.reference_reads += len({t for it in items for t in it["frame_times"].values()})
     return out
 
 
@@ -92,16 +92,25 @@ def measure_units(sw: SceneWork, ref_settings: dict, cache, configs: list) -> di
     ref, cached = cache.get(scene, 0, sw.width, sw.height, **ref_settings)
     disp = DisplayTransform.from_reference(ref.image)
     measured = C.measure(scene, sw.width, sw.height, configs, {0: disp}, {})
-    # one technique-frame of metrics: the task's own steps (encode both, judge), on a noisy copy
+    # the metrics task's two parts (study.judge): per reference (read, display transform, encode,
+    # quantise) and per technique-frame (encode, judge), here on a noisy copy of the reference
     x = (ref.image * (1 + 0.05 * np.random.default_rng(0).standard_normal(ref.image.shape))).astype(np.float32)
+    got = {}
 
-    def judge():
-        ref_disp = disp.encode(ref.image)
+    def per_reference():       # as study.judge: from the cache (now a read)
+        r = cache.get(scene, 0, sw.width, sw.height, **ref_settings)[0]
+        d = DisplayTransform.from_reference(r.image)
+        got["disp"] = d.encode(r.image)
+        got["ref8"] = np.round(got["disp"] * 255).astype(np.uint8)
+
+    def per_frame():
         x_disp = disp.encode(x)
-        M.all_metrics(ref.image, ref_disp, np.round(ref_disp * 255).astype(np.uint8), x, x_disp,
-                      np.round(x_disp * 255).astype(np.uint8))
-    metrics_s = C.median_ms(judge, repeats=3, warmup=1) / 1000
+        M.all_metrics(ref.image, got["disp"], got["ref8"], x, x_disp, np.round(x_disp * 255).astype(np.uint8),
+                      want_maps=False)
+    reference_read_s = C.median_ms(per_reference, repeats=3, warmup=1) / 1000
+    metrics_s = C.median_ms(per_frame, repeats=3, warmup=1) / 1000
     return {"reference_s": ref.seconds, "reference_cached": cached, "metrics_s": metrics_s,
+            "reference_read_s": reference_read_s,
             "raster_s": min(m["raster_ms"] for m in measured.values()) / 1000,
             "resolve_s": {label: m["resolve_ms"] / 1000 for label, m in measured.items()},
             "subframe_s": {label: m["raster_ms"] / 1000 for label, m in measured.items()}}
@@ -114,7 +123,7 @@ def estimate(sw: SceneWork, units: dict) -> dict:
            "raster": sw.raster_frames * units["raster_s"]
            + sum(n * units["subframe_s"].get(label, units["raster_s"]) for label, n in sw.subframes.items()),
            "resolve": sum(n * res.get(label, 0.0) for label, n in sw.steps.items()),
-           "metrics": sum(sw.judged.values()) * units["metrics_s"],
+           "metrics": sum(sw.judged.values()) * units["metrics_s"] + sw.reference_reads * units["reference_read_s"],
            "agreement": sw.agreement_frames * units["raster_s"]}
     out["total"] = sum(out.values())
     return out

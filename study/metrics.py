@@ -111,18 +111,33 @@ def all_metrics(ref_lin: np.ndarray, ref_disp: np.ndarray, ref8: np.ndarray,
     return out, (maps if want_maps else {})
 
 
-def temporal_instability(ref_seq: list[np.ndarray], x_seq: list[np.ndarray]) -> float:
+class TemporalInstability:
     """RMS (8-bit units) of the error of frame-to-frame differences against the reference's:
-    flicker and ghost trails raise it, a stable sequence that follows the reference keeps it low."""
-    if len(ref_seq) < 2:
-        return math.nan
-    acc, n = 0.0, 0
-    for k in range(1, len(ref_seq)):
-        dr_ = ref_seq[k].astype(np.float64) - ref_seq[k - 1]
-        dx = x_seq[k].astype(np.float64) - x_seq[k - 1]
-        acc += float(np.sum((dx - dr_) ** 2))
-        n += dr_.size
-    return math.sqrt(acc / n)
+    flicker and ghost trails raise it, a stable sequence that follows the reference keeps it low.
+    Fed one (reference, technique) pair of 8-bit frames at a time, in sequence order."""
+
+    def __init__(self):
+        self.frames, self._acc, self._n, self._prev = 0, 0.0, 0, None
+
+    def add(self, ref8: np.ndarray, x8: np.ndarray) -> None:
+        if self._prev is not None:
+            dr_ = ref8.astype(np.float64) - self._prev[0]
+            dx = x8.astype(np.float64) - self._prev[1]
+            self._acc += float(np.sum((dx - dr_) ** 2))
+            self._n += dr_.size
+        self._prev = (ref8, x8)
+        self.frames += 1
+
+    def value(self) -> float:
+        return math.sqrt(self._acc / self._n) if self._n else math.nan
+
+
+def temporal_instability(ref_seq: list[np.ndarray], x_seq: list[np.ndarray]) -> float:
+    """TemporalInstability of whole sequences (NaN for fewer than two frames)."""
+    acc = TemporalInstability()
+    for r, x in zip(ref_seq, x_seq):
+        acc.add(r, x)
+    return acc.value()
 
 
 def judge_run(images: dict, output_space: str, refs: dict, displays: dict, ref8: dict, kept: list[int],

@@ -3,7 +3,7 @@
 A study is a list of tests (scene, protocol, techniques). For each the planner keys
   reference   (scene, frame)                    -- study.tasks.reference_task
   run         (scene, protocol, the techniques that share its raster frames) -- run_task
-  metrics     (one technique's run)             -- metrics_task
+  metrics     (one technique's run; a test's are judged by one task) -- study.judge.metrics_task
   agreement   (scene)                           -- agreement_task
 from the keys of their inputs (provenance.task_key), and leaves out every task whose artefact is
 already complete in the cache. Where the tasks run is study.execute's business; the tables and
@@ -16,6 +16,7 @@ from pathlib import Path
 
 from provenance import task_key
 
+from . import judge as J
 from . import tasks as T
 from .config import TechniqueConfig
 from .protocols import Protocol, judged_steps
@@ -26,7 +27,7 @@ from .protocols import Protocol, judged_steps
 CODE = {
     "reference": ("references.cache", "references.render", "display"),
     "run": ("study.protocols", "study.tasks"),
-    "metrics": ("study.metrics", "study.tasks", "display"),
+    "metrics": ("study.judge", "study.metrics", "display"),
     "agreement": ("study.agreement",),
 }
 
@@ -89,6 +90,7 @@ class Planner:
         self.store = Store(Path(ctx.cache_root))
         self.plan = Plan()
         self._run_task_of: dict = {}     # run key -> key of the run task that makes it
+        self._metrics_task_of: dict = {}  # metrics key -> key of the metrics task that judges it
 
     # -- keys ----------------------------------------------------------------------------------------
     def reference_key(self, scene, t: int, w: int, h: int) -> str:
@@ -165,14 +167,20 @@ class Planner:
                     {c.label: test.run_folders[c.label] for c in need_run}, self.ref_settings), rdeps)
                 run_dep = (rkey,)
                 self._run_task_of.update({test.run_keys[c.label]: rkey for c in need_run})
-            for c in missing:
-                ts = sorted(set(test.frame_times[c.label].values()))
-                deps = ((shared[c.label],) if c.label in shared else run_dep) + tuple(self._reference(spec, scene, t, w, h) for t in ts)
-                mkey = test.metrics_keys[c.label]
-                self.plan.tasks[mkey] = Task(mkey, "metrics", T.metrics_task, (
-                    self.ctx, spec, w, h, test.run_folders[c.label], test.run_keys[c.label],
-                    test.frame_times[c.label], self.ref_settings, test.maps_for[c.label], mkey,
-                    test.metrics_folders[c.label]), deps)
+            # one metrics task judges the test's missing techniques together (study.judge); a
+            # metrics key another test's task already judges (a shared run's) is left to it
+            mine = [c for c in missing if test.metrics_keys[c.label] not in self._metrics_task_of]
+            if mine:
+                ts = sorted({t for c in mine for t in test.frame_times[c.label].values()})
+                made_by = {shared.get(c.label) or (run_dep[0] if c in need_run else None) for c in mine} - {None}
+                deps = tuple(sorted(made_by)) + tuple(self._reference(spec, scene, t, w, h) for t in ts)
+                items = [{"label": c.label, "run_folder": test.run_folders[c.label], "run_key": test.run_keys[c.label],
+                          "frame_times": test.frame_times[c.label], "maps_for": test.maps_for[c.label],
+                          "key": test.metrics_keys[c.label], "folder": test.metrics_folders[c.label]} for c in mine]
+                gkey = task_key("metrics-of", sorted(it["key"] for it in items))
+                self.plan.tasks[gkey] = Task(gkey, "metrics", J.metrics_task,
+                                             (self.ctx, spec, w, h, items, self.ref_settings), deps)
+                self._metrics_task_of.update({it["key"]: gkey for it in items})
         self.plan.tests.append(test)
         return test
 

@@ -105,6 +105,9 @@ class Study:
             self.log(f"study: {len(plan.tasks)} tasks to compute ({', '.join(f'{k} {n}' for k, n in sorted(counts.items()))})"
                      f", {len(plan.cached)} complete; executor: {self.executor.describe()}")
         results = execute(plan, self.executor, self.progress, self.log)
+        for key in [k for k, v in results.items() if "records" in v]:   # a metrics task: its records by key
+            for mkey, rec in results.pop(key)["records"].items():
+                results[mkey] = {"kind": "metrics", "key": mkey, **rec}
 
         out = StudyResults()
         out.stats = {"runs_computed": sum(len([r for r in v["runs"].values() if r["computed"]])

@@ -136,65 +136,6 @@ def _run_summary(rec: dict, computed: bool) -> dict:
             "stats": rec.get("stats", {}), "computed": computed}
 
 
-# -- metrics of a run --------------------------------------------------------------------------------
-@_deterministic
-def metrics_task(ctx: Context, scene_spec: str, w: int, h: int, run_folder: str, run_key: str,
-                 frame_times: dict, ref_settings: dict, maps_for: list, key: str, folder: str, deps=()) -> dict:
-    """Metrics of every judged frame of one run against its references; maps of `maps_for`."""
-    import numpy as np
-
-    from display import DisplayTransform
-
-    from . import metrics as M
-    from .store import TamperError
-    store = _setup(ctx)
-    scene = load_scene(scene_spec)
-    with store.lock(key):
-        rec = store.done(Path(folder), key)
-        if rec is not None:
-            return {"kind": "metrics", "key": key, "data": _metrics_data(rec), "computed": False}
-        run = store.done(Path(run_folder), run_key)
-        if run is None:
-            raise TaskError(f"metrics of {run_folder}: the run is not complete")
-        images = {}
-        try:
-            for f in run["frames"]:
-                ch = store.read_image(Path(run_folder), f"frame_{f:04d}.exr", run)
-                images[f] = np.stack([ch[c] for c in "RGB"], -1)
-        except TamperError as exc:
-            store.invalidate(Path(run_folder), str(exc))
-            raise TaskError(f"{exc}: the run was invalidated; run the study again to re-make it") from None
-        times = {int(f): int(t) for f, t in frame_times.items()}
-        refs = _references(ctx, scene, sorted(set(times.values())), w, h, ref_settings)
-        displays = {t: DisplayTransform.from_reference(r.image) for t, r in refs.items()}
-        per_frame, maps, seq = {}, {}, []
-        for f in run["frames"]:
-            t = times[f]
-            ref = refs[t]
-            disp = displays[t]
-            ref_disp = disp.encode(ref.image)
-            ref8 = np.round(ref_disp * 255.0).astype(np.uint8)   # disp.to_8bit, without encoding twice
-            x = images[f]
-            if run["output_space"] == "display":
-                x_lin, x_disp = None, np.clip(x.astype(np.float64), 0, 1)
-            else:
-                x_lin, x_disp = x, disp.encode(x)
-            x8 = np.round(x_disp * 255).astype(np.uint8)
-            per_frame[str(f)], m = M.all_metrics(ref.image, ref_disp, ref8, x_lin, x_disp, x8)
-            if f in maps_for:
-                maps[f"maps_{f:04d}.exr"] = m
-            seq.append((ref8, x8))
-        temporal = M.temporal_instability([a for a, _ in seq], [b for _, b in seq]) if len(seq) > 1 else None
-        data = {"per_frame": per_frame, "temporal": temporal,
-                "references": {str(t): r.key for t, r in refs.items()}}
-        rec = store.save_folder(Path(folder), key, maps, {"data": data})
-    return {"kind": "metrics", "key": key, "data": _metrics_data(rec), "computed": True}
-
-
-def _metrics_data(rec: dict) -> dict:
-    return rec["data"]
-
-
 # -- agreement of a scene -------------------------------------------------------------------------------
 @_deterministic
 def agreement_task(ctx: Context, scene_spec: str, w: int, h: int, samples: int, ref_settings: dict,

@@ -20,7 +20,7 @@ technique = "accumulation"
 params = {{ samples = 4 }}
 [protocols.static]
 history = 16
-checkpoints = [1, 16]
+checkpoints = [1, 4, 16]
 thesis_history = 16
 [[protocols.ghosting]]
 name = "ghosting"
@@ -52,10 +52,10 @@ def test_units_of_a_tiny_study_by_hand_and_none_once_it_ran(tmp_path, monkeypatc
     assert mov["raster_frames"] == 17 + 8 + 19
     assert mov["subframes"] == 4 * (1 + 4)                   # SSAA 4x: static once, cold ghosting 4
     assert mov["technique_steps"] == (16 + 4 + 20) + (1 + 4) + (1 + 4)
-    assert mov["technique_frames_judged"] == (2 + 4 + 4) + (1 + 4) + (1 + 4)
+    assert mov["technique_frames_judged"] == (3 + 4 + 4) + (1 + 4) + (1 + 4)
     # tiny_still is not animated: the static test only
     assert (still["references"], still["raster_frames"], still["subframes"]) == (1, 17, 4)
-    assert (still["technique_steps"], still["technique_frames_judged"]) == (16 + 1 + 1, 2 + 1 + 1)
+    assert (still["technique_steps"], still["technique_frames_judged"]) == (16 + 1 + 1, 3 + 1 + 1)
 
     run_cli(["run", path, "--out", tmp_path / "out"])
     doc = json.loads(run_cli(["estimate", path, "--json"]).output)
