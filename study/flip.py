@@ -252,46 +252,42 @@ def _colour_difference(fr, ft, c: _Consts, F64):
     return dr.select(cd < float(c.pccmax), low, high)
 
 
-def ldr_flip_linear(lay: jf.Layout, ref_rgb, test_rgb, c: _Consts):
-    """FLIP error map (flat float32 array in `lay`) of two linear RGB images in [0, 1] (lists of
-    three flat arrays)."""
-    J = jf.jit()
-    F, F64 = J.Float, _pow_type()
-    planes = []
-    for rgb in (ref_rgb, test_rgb):
-        planes += _ycxcz(rgb)
+def _filtered(lay: jf.Layout, rgb, c: _Consts):
+    """One image's half of LDR-FLIP: its filtered (Y, Cx, Cz) and its edge and point feature
+    magnitudes, from linear RGB in [0, 1] (three flat arrays). The reference's half does not
+    depend on the test image, so a caller judging many images against one reference keeps it."""
+    planes = _ycxcz(rgb)
     dr.eval(planes)
     one116, six116 = float(f32(1.0) / f32(116.0)), float(f32(16.0) / f32(116.0))
 
     def quantities(v):
-        q = []
-        for o in (0, 3):
-            q += [v[o], v[o + 1], v[o + 2], v[o] * one116 + six116]
-        return q
+        return [v[0], v[1], v[2], v[0] * one116 + six116]
 
     gY, gCx, gZ1, gZ2 = c.spatial
     g, dg, ddg = c.feature
-    hf = []
-    for o in (0, 4):
-        hf += [jf.Filter(o, gY), jf.Filter(o + 1, gCx), jf.Filter(o + 2, gZ1), jf.Filter(o + 2, gZ2),
-               jf.Filter(o + 3, g), jf.Filter(o + 3, dg), jf.Filter(o + 3, ddg)]
+    hf = [jf.Filter(0, gY), jf.Filter(1, gCx), jf.Filter(2, gZ1), jf.Filter(2, gZ2),
+          jf.Filter(3, g), jf.Filter(3, dg), jf.Filter(3, ddg)]
     hs = jf.hpass(lay, planes, quantities, hf, "float32")
     dr.eval(hs)
-    vf = []
-    for b in (0, 7):
-        vf += [jf.Filter(b, gY), jf.Filter(b + 1, gCx), jf.Filter(b + 2, gZ1), jf.Filter(b + 3, gZ2),
-               jf.Filter(b + 5, g), jf.Filter(b + 6, g), jf.Filter(b + 4, dg), jf.Filter(b + 4, ddg)]
+    vf = [jf.Filter(0, gY), jf.Filter(1, gCx), jf.Filter(2, gZ1), jf.Filter(3, gZ2),
+          jf.Filter(5, g), jf.Filter(6, g), jf.Filter(4, dg), jf.Filter(4, ddg)]
     vs = jf.vpass(lay, hs, vf, "float32")
     del hs
-    fr = (vs[0], vs[1], vs[2] + vs[3])
-    ft = (vs[8], vs[9], vs[10] + vs[11])
+    dx, ddx, dy, ddy = vs[4], vs[5], vs[6], vs[7]
+    out = ((vs[0], vs[1], vs[2] + vs[3]), (dr.sqrt(dx * dx + dy * dy), dr.sqrt(ddx * ddx + ddy * ddy)))
+    dr.eval(out)
+    return out
+
+
+def ldr_flip_linear(lay: jf.Layout, ref_rgb, test_rgb, c: _Consts, ref_half=None):
+    """FLIP error map (flat float32 array in `lay`) of two linear RGB images in [0, 1] (lists of
+    three flat arrays). `ref_half`: the reference's _filtered, if already computed."""
+    F64 = _pow_type()
+    fr, feat_r = ref_half if ref_half is not None else _filtered(lay, ref_rgb, c)
+    ft, feat_t = _filtered(lay, test_rgb, c)
     colour = _colour_difference(fr, ft, c, F64)
-    feats = []
-    for b in (0, 8):
-        dx, ddx, dy, ddy = vs[b + 4], vs[b + 5], vs[b + 6], vs[b + 7]
-        feats.append((dr.sqrt(dx * dx + dy * dy), dr.sqrt(ddx * ddx + ddy * ddy)))
-    ed = dr.abs(feats[0][0] - feats[1][0])
-    pd = dr.abs(feats[0][1] - feats[1][1])
+    ed = dr.abs(feat_r[0] - feat_t[0])
+    pd = dr.abs(feat_r[1] - feat_t[1])
     norm = float(f32(1.0) / _f32_of(math.sqrt(2.0)))
     feature = _pow(dr.maximum(ed, pd) * norm, float(GQF), F64)
     err = _pow_var(colour, 1.0 - feature, F64)
@@ -333,40 +329,54 @@ def exposures(ref_lin: np.ndarray) -> tuple[f32, f32, int]:
     return start, stop, n
 
 
-def flip(ref: np.ndarray, x: np.ndarray, mode: str, ppd: float | None = None) -> tuple[float, np.ndarray]:
+def flip(ref: np.ndarray, x: np.ndarray, mode: str, ppd: float | None = None,
+         memo: dict | None = None) -> tuple[float, np.ndarray]:
     """(mean, per-pixel map (H, W) float32) of FLIP 'LDR' (sRGB display images in [0, 1]) or 'HDR'
-    (linear, non-negative) -- the contract of flip_evaluator.evaluate(ref, x, mode)."""
+    (linear, non-negative) -- the contract of flip_evaluator.evaluate(ref, x, mode).
+
+    `memo`: a dict kept by a caller that judges several images against this one reference (and
+    only this one): the reference's half of the work (exposures, filtered planes) is kept in it."""
     _check(ref, x)
     c = consts(ppd)
     h, w = ref.shape[:2]
     lay = jf.Layout(h, w)
+    memo = {} if memo is None else memo
+
+    def ref_half(key, rgb_of_ref):
+        k = (mode, key, float(c.ppd))
+        if k not in memo:
+            memo[k] = _filtered(lay, rgb_of_ref(), c)
+        return memo[k]
+
     if mode == "LDR":
-        J = jf.jit()
-        lin = []
-        for img in (ref, x):
-            lin.append([dr.clip(_srgb_to_linear(p, _pow_type()), 0.0, 1.0) for p in _planes(lay, img)])
-        err = ldr_flip_linear(lay, lin[0], lin[1], c)
+        def linear(img):
+            return [dr.clip(_srgb_to_linear(p, _pow_type()), 0.0, 1.0) for p in _planes(lay, img)]
+        err = ldr_flip_linear(lay, None, linear(x), c, ref_half("ldr", lambda: linear(ref)))
     elif mode == "HDR":
-        start, stop, n = exposures(ref)
+        if ("exposures", "HDR") not in memo:
+            memo[("exposures", "HDR")] = exposures(ref)
+        start, stop, n = memo[("exposures", "HDR")]
         step = (stop - start) / f32(n - 1)
-        rp, tp = _planes(lay, ref), _planes(lay, x)
+        tp = _planes(lay, x)
         err = None
         for i in range(n):
             e = start + f32(i) * step
             m = float(_f32_of(2.0 ** float(e)))
-            mapped = []
-            for planes in (rp, tp):
-                out = []
-                for p in planes:
-                    v = p * m
-                    num = (v * v) * float(ACES[0]) + v * float(ACES[1]) + float(ACES[2])
-                    den = (v * v) * float(ACES[3]) + v * float(ACES[4]) + float(ACES[5])
-                    out.append(dr.clip(num / den, 0.0, 1.0))
-                mapped.append(out)
-            ei = ldr_flip_linear(lay, mapped[0], mapped[1], c)
+            ei = ldr_flip_linear(lay, None, _aces(tp, m), c, ref_half(i, lambda: _aces(_planes(lay, ref), m)))
             err = ei if err is None else dr.maximum(err, ei)
             dr.eval(err)
     else:
         raise ValueError(f"FLIP mode must be 'LDR' or 'HDR', not {mode!r}")
     emap = lay.download(err)
     return float(emap.mean(dtype=np.float64)), np.ascontiguousarray(emap, np.float32)
+
+
+def _aces(planes, m: float):
+    """Exposure 2^e (m) and FLIP's ACES fit, clamped to [0, 1]."""
+    out = []
+    for p in planes:
+        v = p * m
+        num = (v * v) * float(ACES[0]) + v * float(ACES[1]) + float(ACES[2])
+        den = (v * v) * float(ACES[3]) + v * float(ACES[4]) + float(ACES[5])
+        out.append(dr.clip(num / den, 0.0, 1.0))
+    return out

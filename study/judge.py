@@ -2,10 +2,11 @@
 
 One task per (scene, protocol) judges every technique of the test whose metrics are missing, frame
 by frame. Each reference is read, display-encoded and quantised once for all of them (at 1600x900
-reading and encoding a reference costs about as much as the metrics of one technique-frame), and a
-technique's frames are read one at a time. Each technique's metrics are still filed under their
-own key (its run, the references and the metric code), so a technique added to a study is judged
-alone, and a key another task already judges is left to it (study.plan).
+reading and encoding a reference costs about as much as the metrics of one technique-frame), and
+FLIP's reference half (its exposures and filtered planes) is computed once per reference
+(study.flip's memo); a technique's frames are read one at a time. Each technique's metrics are
+still filed under their own key (its run, the references and the metric code), so a technique
+added to a study is judged alone, and a key another task already judges is left to it (study.plan).
 """
 from __future__ import annotations
 
@@ -66,6 +67,7 @@ def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict):
         disp = DisplayTransform.from_reference(ref.image)
         ref_disp = disp.encode(ref.image)
         ref8 = np.round(ref_disp * 255.0).astype(np.uint8)    # disp.to_8bit, without encoding twice
+        memo: dict = {}                                         # FLIP's reference half, for every technique
         for i, f in sorted(by_time[t]):
             it, run, st = items[i], runs[i], state[i]
             try:
@@ -80,7 +82,7 @@ def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict):
                 x_lin, x_disp = x, disp.encode(x)
             x8 = np.round(x_disp * 255).astype(np.uint8)
             st["per_frame"][str(f)], maps = M.all_metrics(ref.image, ref_disp, ref8, x_lin, x_disp, x8,
-                                                          want_maps=f in it["maps_for"])
+                                                          want_maps=f in it["maps_for"], memo=memo)
             if f in it["maps_for"]:
                 st["maps"][f"maps_{f:04d}.exr"] = maps
             st["temporal"].add(ref8, x8)

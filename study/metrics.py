@@ -70,14 +70,15 @@ def ssim_volume(ref8: np.ndarray, x8: np.ndarray) -> float:
     return S.ssim_volume(ref8, x8)
 
 
-def flip(ref: np.ndarray, x: np.ndarray, mode: str, impl: str = "drjit") -> tuple[float, np.ndarray]:
+def flip(ref: np.ndarray, x: np.ndarray, mode: str, impl: str = "drjit",
+         memo: dict | None = None) -> tuple[float, np.ndarray]:
     if _impl(impl) == "library":
         import flip_evaluator
         emap, mean, _ = flip_evaluator.evaluate(np.ascontiguousarray(ref, np.float32),
                                                 np.ascontiguousarray(x, np.float32), mode, applyMagma=False)
         return float(mean), np.asarray(emap, np.float32).reshape(ref.shape[:2])
     from . import flip as F
-    return F.flip(ref, x, mode)
+    return F.flip(ref, x, mode, memo=memo)
 
 
 def relmse(ref: np.ndarray, x: np.ndarray) -> float:
@@ -87,10 +88,12 @@ def relmse(ref: np.ndarray, x: np.ndarray) -> float:
 
 def all_metrics(ref_lin: np.ndarray, ref_disp: np.ndarray, ref8: np.ndarray,
                 x_lin: np.ndarray | None, x_disp: np.ndarray, x8: np.ndarray,
-                impl: str = "drjit", want_maps: bool = True) -> tuple[dict, dict]:
+                impl: str = "drjit", want_maps: bool = True, memo: dict | None = None) -> tuple[dict, dict]:
     """Scalar metrics and maps for one image. `x_lin` is None for techniques whose output is a
     display image (FXAA): their HDR metrics are not defined and are reported as None.
-    `want_maps=False` returns no maps (the scalars need them anyway; this only saves keeping them)."""
+    `want_maps=False` returns no maps (the scalars need them anyway; this only saves keeping them).
+    `memo`: one dict per reference, for a caller judging several images against it (FLIP keeps the
+    reference's half of its work there; study.flip.flip)."""
     for name, a in (("reference", ref_lin), ("technique", x_lin), ("technique display", x_disp)):
         if a is not None and not np.all(np.isfinite(a)):
             raise ValueError(f"{name} image holds {int(np.count_nonzero(~np.isfinite(a)))} NaN/Inf values")
@@ -101,12 +104,12 @@ def all_metrics(ref_lin: np.ndarray, ref_disp: np.ndarray, ref8: np.ndarray,
     else:
         s, smap = ssim(ref8, x8, impl)
         s_vol = ssim_volume(ref8, x8)
-    fl, fmap = flip(ref_disp, x_disp, "LDR", impl)
+    fl, fmap = flip(ref_disp, x_disp, "LDR", impl, memo)
     out = {"mse": m, "rmsd": math.sqrt(m), "psnr": psnr_from_mse(m), "snr": snr(ref8, x8), "ssim": s,
            "ssim_volume": s_vol, "flip_ldr": fl, "flip_hdr": None, "relmse_hdr": None}
     maps = {"ssim": smap, "flip_ldr": fmap}
     if x_lin is not None:
-        out["flip_hdr"], maps["flip_hdr"] = flip(np.maximum(ref_lin, 0), np.maximum(x_lin, 0), "HDR", impl)
+        out["flip_hdr"], maps["flip_hdr"] = flip(np.maximum(ref_lin, 0), np.maximum(x_lin, 0), "HDR", impl, memo)
         out["relmse_hdr"] = relmse(ref_lin, x_lin)
     return out, (maps if want_maps else {})
 

@@ -231,3 +231,21 @@ def test_judge_run_keeps_maps_only_for_the_frames_asked():
     res2, maps2 = metrics.judge_run(images, "linear", refs, disp, ref8, kept, maps_for={0, 2})
     assert set(maps2) == {0, 2} and np.array_equal(maps2[2]["ssim"], maps["ssim"])
     assert res2["per_frame"] == res["per_frame"]
+
+
+def test_flip_memo_keeps_the_reference_half_and_changes_no_bit():
+    """Judging several images against one reference reuses its half of FLIP (study.judge): the maps
+    are bit-identical to computing everything per pair, and the memo holds one entry per mode and
+    HDR exposure."""
+    rng = np.random.default_rng(3)
+    ref = (rng.random((40, 57, 3)) ** 2 * 4).astype(np.float32)
+    ref[5:12, 5:20] *= 20
+    tests = [(ref * (1 + s * rng.standard_normal(ref.shape))).clip(0).astype(np.float32) for s in (0.1, 0.3)]
+    memo = {}
+    for x in tests:
+        for mode, a, b in (("LDR", np.clip(ref / 4, 0, 1), np.clip(x / 4, 0, 1)), ("HDR", ref, x)):
+            want_mean, want_map = F.flip(a, b, mode)
+            got_mean, got_map = F.flip(a, b, mode, memo=memo)
+            assert got_mean == want_mean and np.array_equal(got_map, want_map), mode
+    n_exp = F.exposures(ref)[2]
+    assert len([k for k in memo if k[0] == "HDR"]) == n_exp and len([k for k in memo if k[0] == "LDR"]) == 1
