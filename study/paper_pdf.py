@@ -136,8 +136,8 @@ def build_pdf(paper_dir: Path, timeout: float = 600) -> Path:
 
 
 def contents(paper_dir: Path) -> dict:
-    """What the last build holds: page count, labels (from main.aux), graphics files read and
-    overfull boxes (from main.log)."""
+    """What the last build holds: page count, labels (from main.aux), graphics files read,
+    overfull boxes and each table's natural width over the line width, in order (from main.log)."""
     paper_dir = Path(paper_dir)
     aux = (paper_dir / "main.aux").read_text(errors="replace")
     log = (paper_dir / "main.log").read_text(errors="replace")
@@ -148,7 +148,9 @@ def contents(paper_dir: Path) -> dict:
     return {"pages": int(pages.group(1)) if pages else None,
             "labels": re.findall(r"\\newlabel\{([^}]*)\}", aux),
             "graphics": sorted(set(re.findall(r"<(generated/figures/[^>,]+?\.png)", log.replace("\n", "")))),
-            "overfull": len(re.findall(r"^Overfull \\hbox", log, re.M))}
+            "overfull": len(re.findall(r"^Overfull \\hbox", log, re.M)),
+            "table_widths": [float(w) / float(lw) for w, lw in
+                             re.findall(r"taa-table: natural width ([\d.]+)pt \(line width ([\d.]+)pt\)", log)]}
 
 
 __all__ = ["fill_generated", "build_pdf", "contents", "PaperError"]

@@ -128,6 +128,8 @@ def test_paper_builds_from_a_tiny_study_with_every_table_and_figure(tmp_path):
     assert pdf.is_file() and pdf.read_bytes()[:5] == b"%PDF-"
     assert set(c["labels"]) >= {f"tab:{t}" for t in tables} | {f"fig:{Path(f).stem}" for f in got["figures"]}
     assert c["graphics"] == sorted(f"generated/figures/{f}" for f in got["figures"])
+    # the reproduction table (the second) wraps its text to the line instead of being shrunk
+    assert len(c["table_widths"]) == len(tables) and c["table_widths"][1] <= 1.0, c["table_widths"]
     # every table and figure is a float on a page of its own ('\clearpage' between them), after the text
     assert c["pages"] >= len(got["tables"]) + len(got["figures"])
     if shutil.which("pdfinfo"):
