@@ -110,6 +110,7 @@ class Profile:
     agreement: bool = True
     sweep: bool = False
     thesis_history: int = THESIS_HISTORY
+    keep_frames: str = "report"           # 'report': a run keeps, once judged, the frames the report reads; 'all'
     source: str = ""
 
     @property

@@ -4,8 +4,9 @@
 the cache): references to render, distinct raster frames, technique steps (process calls), judged
 technique-frames (the metrics' unit) and agreement checks. `measure_units` times one of each unit
 per scene here (a reference of frame 0 through the cache, so a measured reference is not wasted;
-raster and resolve through study.costs; the metrics of one technique-frame), and `estimate`
-multiplies. It is an extrapolation: a moving scene's references are assumed to cost what its
+raster and resolve through study.costs; the metrics of one technique-frame, split into its
+per-reference and per-frame parts as study.judge works; writing, hashing and reading back one
+frame), and `estimate` multiplies. It is an extrapolation: a moving scene's references are assumed to cost what its
 frame 0 costs, and sparse supersampling's extra samples are taken at the share its mask asks for
 on a converged frame.
 """
@@ -110,9 +111,25 @@ def measure_units(sw: SceneWork, ref_settings: dict, cache, configs: list) -> di
         M.all_metrics(ref.image, got["disp"], got["ref8"], x, x_disp, np.round(x_disp * 255).astype(np.uint8),
                       want_maps=False, memo=memo)
     reference_read_s = C.median_ms(per_reference, repeats=3, warmup=1) / 1000
+    # each judged frame is written by its run (and hashed) and read back by the metrics task
+    import tempfile
+    from pathlib import Path
+
+    from references.exr import read_exr, write_exr
+
+    from .store import sha256_file
+    with tempfile.TemporaryDirectory() as tmp:
+        frame = Path(tmp) / "frame.exr"
+
+        def frame_io():
+            write_exr(frame, {"RGB": ref.image})      # real content (noise compresses worse)
+            sha256_file(frame)
+            sha256_file(frame)
+            read_exr(frame)
+        frame_io_s = C.median_ms(frame_io, repeats=3, warmup=1) / 1000
     metrics_s = C.median_ms(per_frame, repeats=3, warmup=1) / 1000
     return {"reference_s": ref.seconds, "reference_cached": cached, "metrics_s": metrics_s,
-            "reference_read_s": reference_read_s,
+            "reference_read_s": reference_read_s, "frame_io_s": frame_io_s,
             "raster_s": min(m["raster_ms"] for m in measured.values()) / 1000,
             "resolve_s": {label: m["resolve_ms"] / 1000 for label, m in measured.items()},
             "subframe_s": {label: m["raster_ms"] / 1000 for label, m in measured.items()}}
@@ -126,6 +143,7 @@ def estimate(sw: SceneWork, units: dict) -> dict:
            + sum(n * units["subframe_s"].get(label, units["raster_s"]) for label, n in sw.subframes.items()),
            "resolve": sum(n * res.get(label, 0.0) for label, n in sw.steps.items()),
            "metrics": sum(sw.judged.values()) * units["metrics_s"] + sw.reference_reads * units["reference_read_s"],
+           "frame_io": sum(sw.judged.values()) * units["frame_io_s"],
            "agreement": sw.agreement_frames * units["raster_s"]}
     out["total"] = sum(out.values())
     return out

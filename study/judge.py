@@ -19,7 +19,8 @@ from .tasks import TaskError, _deterministic, _setup, load_scene
 @_deterministic
 def metrics_task(ctx, scene_spec: str, w: int, h: int, items: list, ref_settings: dict, deps=()) -> dict:
     """items: one per technique, {run_folder, run_key, frame_times (frame id -> scene time),
-    maps_for (frame ids whose maps are kept), key, folder}. Returns the records by metrics key."""
+    maps_for (frame ids whose maps are kept), keep (frame ids of the run to keep once judged, or
+    None for all), key, folder}. Returns the records by metrics key."""
     store = _setup(ctx)
     scene = load_scene(scene_spec)
     records = {}
@@ -49,7 +50,7 @@ def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict):
     from .store import TamperError
     runs = []
     for it in items:
-        run = store.done(Path(it["run_folder"]), it["run_key"])
+        run = store.done(Path(it["run_folder"]), it["run_key"], whole=True)
         if run is None:
             raise TaskError(f"metrics of {it['run_folder']}: the run is not complete")
         runs.append(run)
@@ -91,4 +92,6 @@ def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict):
         temporal = st["temporal"].value() if st["temporal"].frames > 1 else None
         data = {"per_frame": st["per_frame"], "temporal": temporal, "references": st["references"]}
         rec = store.save_folder(Path(it["folder"]), it["key"], st["maps"], {"data": data})
+        if it.get("keep") is not None:   # judged: only the frames the report shows stay (study.plan)
+            store.prune(Path(it["run_folder"]), it["run_key"], {f"frame_{f:04d}.exr" for f in it["keep"]})
         yield it, rec["data"]

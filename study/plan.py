@@ -57,6 +57,7 @@ class Test:
     metrics_folders: dict = field(default_factory=dict)
     reference_tasks: dict = field(default_factory=dict)  # scene time -> reference task key
     maps_for: dict = field(default_factory=dict)        # label -> frame ids whose maps are kept
+    keep: dict = field(default_factory=dict)            # label -> frame ids kept once judged (None: all)
 
 
 @dataclass
@@ -71,6 +72,18 @@ class Plan:
         for t in self.tasks.values():
             out[t.kind] = out.get(t.kind, 0) + 1
         return out
+
+
+SHOWN_FRAMES = 24
+
+
+def shown_frames(frames: list, n: int = SHOWN_FRAMES) -> list:
+    """The frames of a sequence the report shows (its frame slider): at most n, evenly spaced."""
+    if len(frames) <= n:
+        return list(frames)
+    import numpy as np
+    idx = np.linspace(0, len(frames) - 1, n).round().astype(int)
+    return [frames[i] for i in sorted(set(idx))]
 
 
 def run_steps(schedule: list, inp) -> list:
@@ -108,10 +121,15 @@ class Planner:
 
     # -- tests -----------------------------------------------------------------------------------------
     def add_test(self, spec: str, scene, protocol: Protocol, configs: list[TechniqueConfig],
-                 w: int, h: int, maps="last") -> Test:
+                 w: int, h: int, maps="last", keep="all") -> Test:
         """Plan one test. `maps`: which judged frames keep their SSIM/FLIP maps: 'last' (the last
         judged frame of each run), 'none', or a tuple of history lengths (the static views; a
-        technique without history keeps its one frame)."""
+        technique without history keeps its one frame). `keep`: which of a run's frames stay in
+        the cache once judged: 'all', 'maps' (those with maps), 'shown' (shown_frames) or 'none'.
+        At 1600x900 a frame is ~9 MB and the full profile judges ~9000: the rest are dropped, and
+        a run is re-made if its metrics are ever needed again."""
+        if keep not in ("all", "maps", "shown", "none"):
+            raise ValueError(f"keep must be 'all', 'maps', 'shown' or 'none', not {keep!r}")
         schedule = protocol.schedule(scene)
         test = Test(scene.name, spec, protocol, list(configs), w, h)
         kept_t = sorted({s.t for s in schedule if s.keep})
@@ -137,6 +155,7 @@ class Planner:
             else:
                 mf = [frames[-1]]
             test.maps_for[c.label] = mf
+            test.keep[c.label] = {"all": None, "maps": mf, "shown": shown_frames(frames), "none": []}[keep]
             mkey = task_key("metrics", {"frames": test.frame_times[c.label], "maps": mf},
                             [key] + [ref_keys[t] for t in sorted(set(test.frame_times[c.label].values()))],
                             code=CODE["metrics"])
@@ -150,8 +169,8 @@ class Planner:
         test.reference_tasks = ref_keys
         if missing:
             # The metrics task reads every frame of its run: a run with a damaged file is re-made.
-            need_run = [c for c in missing if self.store.done(Path(test.run_folders[c.label]),
-                                                              test.run_keys[c.label], verify_files=True) is None]
+            need_run = [c for c in missing if self.store.done(Path(test.run_folders[c.label]), test.run_keys[c.label],
+                                                              verify_files=True, whole=True) is None]
             # a run another test already plans (a technique without history judged at the same
             # instants, e.g. under the cold and the warm ghosting protocol) is made once
             shared = {c.label: self._run_task_of[test.run_keys[c.label]] for c in need_run
@@ -176,6 +195,7 @@ class Planner:
                 deps = tuple(sorted(made_by)) + tuple(self._reference(spec, scene, t, w, h) for t in ts)
                 items = [{"label": c.label, "run_folder": test.run_folders[c.label], "run_key": test.run_keys[c.label],
                           "frame_times": test.frame_times[c.label], "maps_for": test.maps_for[c.label],
+                          "keep": test.keep[c.label],
                           "key": test.metrics_keys[c.label], "folder": test.metrics_folders[c.label]} for c in mine]
                 gkey = task_key("metrics-of", sorted(it["key"] for it in items))
                 self.plan.tasks[gkey] = Task(gkey, "metrics", J.metrics_task,

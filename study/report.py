@@ -15,6 +15,7 @@ from PIL import Image
 from display import DisplayTransform
 from references.exr import write_exr
 
+from .plan import shown_frames
 from .store import write_bytes_atomic, write_text_atomic
 from .tables import METRIC_LABELS, Table, fmt, thesis_layout
 
@@ -225,10 +226,7 @@ class Report:
         """Display images of a ghosting sequence for the HTML report's frame slider (at most
         `max_frames`, evenly spaced), and its per-frame metrics. `reference(t)` gives frame t's
         Reference. Returns the html_report 'ghosting' entry of this protocol."""
-        frames = res.frames
-        if len(frames) > max_frames:
-            idx = np.linspace(0, len(frames) - 1, max_frames).round().astype(int)
-            frames = [frames[i] for i in sorted(set(idx))]
+        frames = shown_frames(res.frames, max_frames)     # the frames its runs keep (study.plan)
         stem = f"ghosting_frames/{res.test}_{res.scene}"
         entry = {"frames": frames, "reference": [], "techniques": {}}
         cache: dict = {}

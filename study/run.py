@@ -85,15 +85,20 @@ class Study:
         statics, ghosts, sweeps = [], [], []
         for spec, scene in scenes:
             w, h = self.resolution(scene)
+            # a run keeps, once judged, the frames the report reads (static views, ghosting sliders)
+            every = self.profile.keep_frames == "all"
             statics.append(planner.add_test(spec, scene, self.profile.static, configs, w, h,
-                                             maps=tuple(self.profile.static_views.values())))
+                                             maps=tuple(self.profile.static_views.values()),
+                                             keep="all" if every else "maps"))
             if ghosting and is_animated(scene):
                 gconf = [c for c in configs if c.name not in self.profile.ghosting_techniques_skip]
                 for p in self.profile.ghosting:
-                    ghosts.append(planner.add_test(spec, scene, p, gconf, w, h, maps="none"))
+                    ghosts.append(planner.add_test(spec, scene, p, gconf, w, h, maps="none",
+                                                   keep="all" if every else "shown"))
             if sweep and scene.name in self.profile.sweep_scenes:
                 proto = self.profile.ghosting[0] if is_animated(scene) else self.profile.static
-                sweeps.append(planner.add_test(spec, scene, proto, list(sweep), w, h, maps="none"))
+                sweeps.append(planner.add_test(spec, scene, proto, list(sweep), w, h, maps="none",
+                                               keep="all" if every else "none"))
             planner.add_agreement(spec, scene, w, h)
         return planner.plan, scenes, statics, ghosts, sweeps
 

@@ -120,8 +120,9 @@ class Store:
         write_text_atomic(folder / "done.json", json.dumps(record, indent=1, default=_json_default))
         return record
 
-    def done(self, folder: Path, key: str, verify_files: bool = False) -> dict | None:
-        """The done record if the folder is complete under `key` (and, if asked, every file intact)."""
+    def done(self, folder: Path, key: str, verify_files: bool = False, whole: bool = False) -> dict | None:
+        """The done record if the folder is complete under `key` (and, if asked, every file intact).
+        `whole`: only if no file was pruned (the caller needs every frame, not the kept ones)."""
         path = folder / "done.json"
         if not path.exists():
             return None
@@ -129,17 +130,36 @@ class Store:
             record = unseal(json.loads(path.read_text()), path)
             if record.get("key") != key:
                 return None
-            if verify_files:
+            if verify_files:            # the kept files too: a tampered one is reported either way
                 for name in record["files"]:
                     self.verify(folder / name, record)
-            return record
+            return None if whole and record.get("pruned") else record
         except (TamperError, ValueError, KeyError, OSError) as exc:
             self.log(f"store: {exc}; re-making {folder}")
             path.unlink(missing_ok=True)
             return None
 
+    def prune(self, folder: Path, key: str, keep: set) -> int:
+        """Drop the files of a done folder not in `keep` (names): the record first lists only the
+        kept ones and names the dropped under 'pruned', then they are deleted. Returns the count."""
+        record = self.done(folder, key)
+        if record is None:
+            return 0
+        drop = sorted(n for n in record["files"] if n not in keep)
+        if not drop:
+            return 0
+        new = seal({**{k: v for k, v in record.items() if k != "sha256"},
+                    "files": {n: h for n, h in record["files"].items() if n in keep},
+                    "pruned": sorted(set(record.get("pruned", [])) | set(drop))})
+        write_text_atomic(folder / "done.json", json.dumps(new, indent=1, default=_json_default))
+        for n in drop:
+            (folder / n).unlink(missing_ok=True)
+        return len(drop)
+
     def verify(self, path: Path, record: dict) -> None:
         expected = record["files"].get(path.name)
+        if expected is None and path.name in record.get("pruned", []):
+            raise TamperError(f"{path}: dropped after it was judged (only the frames the report shows are kept)")
         if expected is None:
             raise TamperError(f"{path}: not listed in its done record")
         found = sha256_file(path) if path.exists() else "missing"

@@ -111,6 +111,7 @@ class StudyModel(_Model):
     techniques: list[TechniqueEntry] = Field(default_factory=list)
     protocols: ProtocolsEntry = Field(default_factory=ProtocolsEntry)
     reference: dict[str, Any] = Field(default_factory=lambda: {"se_bound_lsb": 0.5, "target_noise_db": 60.0})
+    keep_frames: Literal["report", "all"] = "report"
 
     @field_validator("resolution")
     @classmethod
@@ -187,7 +188,7 @@ def load_study(path: str | Path) -> Profile:
                    ref_settings=tuple(sorted(m.reference.items())), ghosting_techniques_skip=tuple(m.ghosting_skip),
                    sweep_scenes=tuple(m.sweep_scenes), agreement_samples=m.agreement_samples,
                    scenes=tuple(scenes), techniques=tuple(configs), out=out, agreement=m.agreement,
-                   sweep=m.sweep, thesis_history=st.thesis_history, source=str(path))
+                   sweep=m.sweep, thesis_history=st.thesis_history, keep_frames=m.keep_frames, source=str(path))
 
 
 def profile(name: str) -> Profile:

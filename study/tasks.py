@@ -96,7 +96,7 @@ def run_task(ctx: Context, scene_spec: str, w: int, h: int, protocol, configs: l
     lock = task_key("run-lock", sorted(keys.values()))
     with store.lock(lock):
         for c in configs:
-            rec = store.done(Path(folders[c.label]), keys[c.label])
+            rec = store.done(Path(folders[c.label]), keys[c.label], whole=True)
             if rec is not None:
                 out[c.label] = _run_summary(rec, computed=False)
             else:

@@ -23,7 +23,8 @@ def test_one_metrics_task_per_test_reads_each_reference_once_and_agrees_with_jud
     monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))
     scenes = write_scenes(tmp_path)
     path = tmp_path / "units.toml"
-    path.write_text(STUDY.format(scenes=json.dumps(scenes)))
+    # every frame kept: judge_run reads them below
+    path.write_text(STUDY.format(scenes=json.dumps(scenes)).replace("sweep = false\n", 'sweep = false\nkeep_frames = "all"\n'))
     reads = []
     get = rc.ReferenceCache.get
 
@@ -69,3 +70,51 @@ def test_one_metrics_task_per_test_reads_each_reference_once_and_agrees_with_jud
 def study_scene(spec):
     from study.tasks import load_scene
     return load_scene(spec)
+
+
+def test_runs_keep_only_the_frames_the_report_reads_and_are_remade_when_judged_again(tmp_path, monkeypatch):
+    from study.config import TechniqueConfig, get_profile
+    from study.plan import shown_frames
+    from study.run import Study
+    from study.store import Store
+    from study_fixtures import moving_scene
+
+    monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))
+    scene = tmp_path / "long.toml"
+    scene.write_text(moving_scene(frames=30, size=(24, 16)))
+    path = tmp_path / "s.toml"
+    path.write_text(STUDY.format(scenes=json.dumps([str(scene)])).replace("frames = 4", "frames = 30"))
+    configs = [TechniqueConfig.parse(s) for s in ("taa_baseline", "noaa")]
+
+    def run():
+        study = Study(get_profile(str(path)), cache_root=tmp_path / "cache", progress=False)
+        return study.run([str(scene)], configs, agreement=False)
+    first = run()
+    store = Store(tmp_path / "cache")
+
+    def files(test, label):
+        a = test.artefacts[label]
+        rec = store.done(Path(a["folder"]), a["run_key"])
+        return sorted(rec["files"]), sorted(rec.get("pruned", [])), a
+    (static,) = first.statics
+    kept, pruned, _ = files(static, "taa_baseline")
+    assert kept == ["frame_0016.exr"] and pruned == ["frame_0001.exr", "frame_0004.exr"]   # the one view
+    cold = first.ghosts["ghosting"][0]
+    kept, pruned, _ = files(cold, "taa_baseline")
+    show = shown_frames(list(range(30)))
+    assert len(show) == 24 and show[0] == 0 and show[-1] == 29
+    assert kept == [f"frame_{f:04d}.exr" for f in show] and len(pruned) == 6
+    first_cold = cold.per_frame["taa_baseline"]
+    assert len(first_cold) == 30                                                # every frame judged
+
+    again = run()                  # nothing to do: the metrics are complete, the pruned runs stay so
+    assert again.stats["runs_computed"] == 0 and again.stats["metrics_computed"] == 0
+
+    # the metrics of the cold ghosting run lost (as a change of metric code would): its run is re-made,
+    # judged to the same figures and pruned again
+    _, _, a = files(cold, "taa_baseline")
+    (Path(a["metrics_folder"]) / "done.json").unlink()
+    third = run()
+    assert third.stats["runs_computed"] == 1 and third.stats["metrics_computed"] == 1
+    assert third.ghosts["ghosting"][0].per_frame["taa_baseline"] == first_cold
+    assert files(third.ghosts["ghosting"][0], "taa_baseline")[1] == pruned
