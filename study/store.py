@@ -97,6 +97,25 @@ def unseal(data: dict, where: Path) -> dict:
     return data
 
 
+class FolderWriter:
+    """A folder being made: it has no done record until `seal`, so a crash leaves it incomplete."""
+
+    def __init__(self, folder: Path):
+        self.folder = Path(folder)
+        self.folder.mkdir(parents=True, exist_ok=True)
+        (self.folder / "done.json").unlink(missing_ok=True)
+        self.hashes: dict[str, str] = {}
+
+    def add(self, name: str, data) -> None:
+        write_exr(self.folder / name, data if isinstance(data, dict) else {"RGB": data})
+        self.hashes[name] = sha256_file(self.folder / name)
+
+    def seal(self, key: str, meta: dict) -> dict:
+        record = seal({**meta, "key": key, "files": dict(self.hashes)})
+        write_text_atomic(self.folder / "done.json", json.dumps(record, indent=1, default=_json_default))
+        return record
+
+
 class Store:
     """Artefacts under `root`: folders of files with a sealed done record, and sealed JSON records."""
 
@@ -110,15 +129,14 @@ class Store:
 
     def save_folder(self, folder: Path, key: str, files: dict[str, np.ndarray | dict], meta: dict) -> dict:
         """Write EXR files (name -> image or channel dict) and then the done record listing their hashes."""
-        folder.mkdir(parents=True, exist_ok=True)
-        (folder / "done.json").unlink(missing_ok=True)
-        hashes = {}
+        w = self.writer(folder)
         for name, data in files.items():
-            write_exr(folder / name, data if isinstance(data, dict) else {"RGB": data})
-            hashes[name] = sha256_file(folder / name)
-        record = seal({**meta, "key": key, "files": hashes})
-        write_text_atomic(folder / "done.json", json.dumps(record, indent=1, default=_json_default))
-        return record
+            w.add(name, data)
+        return w.seal(key, meta)
+
+    def writer(self, folder: Path) -> "FolderWriter":
+        """Files one at a time, then the done record (for artefacts too large to hold at once)."""
+        return FolderWriter(folder)
 
     def done(self, folder: Path, key: str, verify_files: bool = False, whole: bool = False) -> dict | None:
         """The done record if the folder is complete under `key` (and, if asked, every file intact).

@@ -63,12 +63,6 @@ def load_scene(spec: str):
     return get_scene(spec)
 
 
-def _references(ctx: Context, scene, ts, w, h, settings: dict) -> dict:
-    from references import ReferenceCache
-    cache = ReferenceCache(Path(ctx.cache_root))
-    return {t: cache.get(scene, t, w, h, **settings)[0] for t in ts}
-
-
 # -- reference -----------------------------------------------------------------------------------
 @_deterministic
 def reference_task(ctx: Context, scene_spec: str, t: int, w: int, h: int, settings: dict) -> dict:
@@ -105,23 +99,28 @@ def run_task(ctx: Context, scene_spec: str, w: int, h: int, protocol, configs: l
             schedule = protocol.schedule(scene)
             displays = {}
             if any(c.make().inputs.display for c in todo):
-                kept_t = sorted({s.t for s in schedule if s.keep})
-                refs = _references(ctx, scene, kept_t, w, h, ref_settings)
-                displays = {t: DisplayTransform.from_reference(r.image) for t, r in refs.items()}
+                from references import ReferenceCache
+                cache = ReferenceCache(Path(ctx.cache_root))
+                for t in sorted({s.t for s in schedule if s.keep}):   # one reference held at a time
+                    displays[t] = DisplayTransform.from_reference(cache.get(scene, t, w, h, **ref_settings)[0].image)
+            writers = {c.label: store.writer(Path(folders[c.label])) for c in todo}
+            frames: dict = {c.label: [] for c in todo}
+
+            def emit(label, f, img):      # each judged frame goes to the cache as it is made
+                if not _finite(img):
+                    raise TaskError(f"scene {scene.name!r}, {protocol.name}: technique {label!r} produced "
+                                    f"NaN/Inf in frame(s) {[f]}")
+                writers[label].add(f"frame_{f:04d}.exr", img)
+                frames[label].append(f)
             fresh = run_schedule(scene, w, h, schedule, todo, displays,
                                  desc=f"{scene.name}: {protocol.name} ({', '.join(c.label for c in todo)})",
-                                 progress=False)
+                                 progress=False, emit=emit)
             for c in todo:
                 r = fresh[c.label]
-                bad = [f for f, img in r["images"].items() if not _finite(img)]
-                if bad:
-                    raise TaskError(f"scene {scene.name!r}, {protocol.name}: technique {c.label!r} produced "
-                                    f"NaN/Inf in frame(s) {bad[:5]}")
                 meta = {"label": c.label, "technique": c.name, "overrides": [list(o) for o in c.overrides],
                         "output_space": r["output_space"], "nonfinite_inputs": r["nonfinite"],
-                        "frames": sorted(r["images"]), "stats": {str(f): v for f, v in r["stats"].items()}}
-                files = {f"frame_{f:04d}.exr": img for f, img in r["images"].items()}
-                rec = store.save_folder(Path(folders[c.label]), keys[c.label], files, meta)
+                        "frames": sorted(frames[c.label]), "stats": {str(f): v for f, v in r["stats"].items()}}
+                rec = writers[c.label].seal(keys[c.label], meta)
                 out[c.label] = _run_summary(rec, computed=True)
     return {"kind": "run", "runs": out}
 
