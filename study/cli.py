@@ -339,8 +339,10 @@ def run(study_file, profile, scene_list, tech_list, out_dir, no_agreement, worke
 @click.option("--measure/--no-measure", default=False, show_default=True,
               help="Time one unit of each kind per scene here (renders and caches frame 0's reference) "
                    "and extrapolate the study's wall time.")
+@click.option("--from-scratch", is_flag=True,
+              help="Count the whole study's work as on an empty cache (the units are still measured with the cache).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document instead of the table.")
-def estimate(study_file, profile, scene_list, measure, as_json):
+def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
     """What a study would compute (work units per scene, only what the cache lacks) and, with
     --measure, what that costs on this machine, extrapolated from one unit of each kind."""
     from scenes import builtin_names
@@ -352,9 +354,13 @@ def estimate(study_file, profile, scene_list, measure, as_json):
     names = scene_list or list(prof.scenes) or builtin_names()
     configs = _techniques((), prof.techniques)
     _load_scenes(names)
+    import tempfile
+    from pathlib import Path
     study = Study(prof, progress=False)
-    plan = study.plan(names, configs, agreement=prof.agreement, sweep=SPARSE_SWEEP if prof.sweep else ())[0]
-    work = E.work(plan, study.cache)
+    with tempfile.TemporaryDirectory() as empty:
+        planner = Study(prof, cache_root=Path(empty), progress=False) if from_scratch else study
+        plan = planner.plan(names, configs, agreement=prof.agreement, sweep=SPARSE_SWEEP if prof.sweep else ())[0]
+        work = E.work(plan, None if from_scratch else study.cache)
     rows, totals = [], {}
     for name, sw in work.items():
         row = {"scene": name, "resolution": [sw.width, sw.height], "references": sw.references,

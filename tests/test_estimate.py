@@ -60,3 +60,5 @@ def test_units_of_a_tiny_study_by_hand_and_none_once_it_ran(tmp_path, monkeypatc
     run_cli(["run", path, "--out", tmp_path / "out"])
     doc = json.loads(run_cli(["estimate", path, "--json"]).output)
     assert doc["tasks"] == {} and doc["scenes"] == []
+    scratch = json.loads(run_cli(["estimate", path, "--json", "--from-scratch"]).output)
+    assert {r["scene"]: r for r in scratch["scenes"]} == got          # the whole study's work again
