@@ -111,6 +111,7 @@ def measure_units(sw: SceneWork, ref_settings: dict, cache, configs: list) -> di
         M.all_metrics(ref.image, got["disp"], got["ref8"], x, x_disp, np.round(x_disp * 255).astype(np.uint8),
                       want_maps=False, memo=memo)
     reference_read_s = C.median_ms(per_reference, repeats=3, warmup=1) / 1000
+    metrics_s = C.median_ms(per_frame, repeats=3, warmup=1) / 1000
     # each judged frame is written by its run (and hashed) and read back by the metrics task
     import tempfile
     from pathlib import Path
@@ -127,7 +128,6 @@ def measure_units(sw: SceneWork, ref_settings: dict, cache, configs: list) -> di
             sha256_file(frame)
             read_exr(frame)
         frame_io_s = C.median_ms(frame_io, repeats=3, warmup=1) / 1000
-    metrics_s = C.median_ms(per_frame, repeats=3, warmup=1) / 1000
     return {"reference_s": ref.seconds, "reference_cached": cached, "metrics_s": metrics_s,
             "reference_read_s": reference_read_s, "frame_io_s": frame_io_s,
             "raster_s": min(m["raster_ms"] for m in measured.values()) / 1000,

@@ -111,9 +111,12 @@ class FolderWriter:
         self.hashes[name] = sha256_file(self.folder / name)
 
     def seal(self, key: str, meta: dict) -> dict:
-        record = seal({**meta, "key": key, "files": dict(self.hashes)})
-        write_text_atomic(self.folder / "done.json", json.dumps(record, indent=1, default=_json_default))
-        return record
+        return _write_done(self.folder, seal({**meta, "key": key, "files": dict(self.hashes)}))
+
+
+def _write_done(folder: Path, record: dict) -> dict:
+    write_text_atomic(folder / "done.json", json.dumps(record, indent=1, default=_json_default))
+    return record
 
 
 class Store:
@@ -166,10 +169,8 @@ class Store:
         drop = sorted(n for n in record["files"] if n not in keep)
         if not drop:
             return 0
-        new = seal({**{k: v for k, v in record.items() if k != "sha256"},
-                    "files": {n: h for n, h in record["files"].items() if n in keep},
-                    "pruned": sorted(set(record.get("pruned", [])) | set(drop))})
-        write_text_atomic(folder / "done.json", json.dumps(new, indent=1, default=_json_default))
+        _write_done(folder, seal({**record, "files": {n: h for n, h in record["files"].items() if n in keep},
+                                  "pruned": sorted(set(record.get("pruned", [])) | set(drop))}))
         for n in drop:
             (folder / n).unlink(missing_ok=True)
         return len(drop)
