@@ -53,7 +53,21 @@ class DisplayTransform:
         return np.asarray(colour.cctf_encoding(self.tonemap(rgb), function="sRGB"), np.float64)
 
     def to_8bit(self, rgb: np.ndarray) -> np.ndarray:
-        return np.round(self.encode(rgb) * 255.0).astype(np.uint8)
+        return quantise(self.encode(rgb))
+
+    def output(self, x: np.ndarray, output_space: str):
+        """A technique's output as (linear HDR or None, display floats, 8-bit display): an output
+        already in display space (FXAA, SMAA) is clipped, not encoded, and has no linear form."""
+        if output_space == "display":
+            disp = np.clip(np.asarray(x, np.float64), 0.0, 1.0)
+            return None, disp, quantise(disp)
+        disp = self.encode(x)
+        return x, disp, quantise(disp)
+
+
+def quantise(display: np.ndarray) -> np.ndarray:
+    """Display floats in [0, 1] -> 8-bit, rounded to nearest."""
+    return np.round(display * 255.0).astype(np.uint8)
 
 
 def psnr(a: np.ndarray, b: np.ndarray, peak: float = 1.0) -> float:

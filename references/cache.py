@@ -24,11 +24,12 @@ import numpy as np
 
 from scenes import ResolvedScene
 
+from . import settings as S
 from .exr import read_exr, write_exr
 from .render import Reference, render_reference
 
-_CODE_FILES = ("shading/surface.py", "shading/frame.py", "references/render.py",
-               "references/mitsuba_scene.py", "display/__init__.py")
+_CODE_FILES = ("shading/surface.py", "shading/frame.py", "references/render.py", "references/settings.py",
+               "references/tracer.py", "references/mitsuba_scene.py", "display/__init__.py")
 
 
 def default_cache_dir() -> Path:
@@ -104,14 +105,14 @@ class ReferenceCache:
             chans[f"display_floor.{c}"] = ref.display_floor[..., k]
         write_exr(path, chans, header)
 
-    def has(self, scene: ResolvedScene, t: int, width: int, height: int, *, se_bound_lsb=0.5,
-            target_noise_db=60.0, spp_per_pass=2) -> bool:
+    def has(self, scene: ResolvedScene, t: int, width: int, height: int, *, se_bound_lsb=S.SE_BOUND_LSB,
+            target_noise_db=S.TARGET_NOISE_DB, spp_per_pass=2) -> bool:
         """Whether the reference `get` would return is in the cache (not verified)."""
         return self.path(scene, self.key(scene, t, width, height, bound_lsb=se_bound_lsb, target=target_noise_db,
                                          spp_per_pass=spp_per_pass)).exists()
 
-    def get(self, scene: ResolvedScene, t: int, width: int, height: int, *, se_bound_lsb=0.5,
-            target_noise_db=60.0, spp_per_pass=2, progress=None) -> tuple[Reference, bool]:
+    def get(self, scene: ResolvedScene, t: int, width: int, height: int, *, se_bound_lsb=S.SE_BOUND_LSB,
+            target_noise_db=S.TARGET_NOISE_DB, spp_per_pass=2, progress=None) -> tuple[Reference, bool]:
         """(reference, was_cached): every pixel's display-domain SE <= se_bound_lsb (8-bit LSB)
         and the mean noise >= target_noise_db, or the pixels that hit the sample cap counted."""
         key = self.key(scene, t, width, height, bound_lsb=se_bound_lsb, target=target_noise_db,

@@ -73,8 +73,8 @@ def main() -> int:
         return 2
 
     from display import DisplayTransform
-    from study import flip as F
-    from study import metrics as M
+    from study.metrics import flip as F
+    from study.metrics import suite as M
 
     ref, x = pair(args)
     dt = DisplayTransform.from_reference(ref)
@@ -92,7 +92,7 @@ def main() -> int:
     print(f"{'metric':<20}{'library wall':>13}{'cpu':>8}{'drjit wall':>12}{'cpu':>8}{'speed-up':>10}")
     for name, fn in rows:
         if fn is None:
-            from study import ssim as S
+            from study.metrics import ssim as S
             lib = None
             new = timed(lambda: S.ssim_both(r8, x8), args.repeat)
         else:

@@ -3,7 +3,7 @@
 For each scene: the unjittered frame of scene time 0 (raster.Rasterizer), its reference from
 references.ReferenceCache (the quick profile's convergence target; cached under .cache/taa-study),
 the display transform from that reference, then SMAA (and, for context, No AA and FXAA) on the
-display image, PSNR as study.metrics computes it.
+display image, PSNR as study.metrics.suite computes it.
 
     .venv/bin/python scripts/smaa_column.py [--scenes a,b,...] [--size 320x180]
         [--param name=value ...] [--baseline GIT_REV] [--refs DIR] [--json out.json]
@@ -118,8 +118,8 @@ def main(argv=None) -> int:
     from raster import Rasterizer
     from references import ReferenceCache
     from scenes import builtin_names, get_scene
-    from study import metrics as M
-    from study.config import PROFILES
+    from study.metrics import suite as M
+    from study.config import defaults
 
     names = [s for s in args.scenes.split(",") if s]
     unknown = [s for s in names if s not in builtin_names()]
@@ -127,7 +127,7 @@ def main(argv=None) -> int:
         fail(f"--scenes: unknown scene(s) {unknown}; built-ins: {', '.join(builtin_names())}")
 
     cache = ReferenceCache(log=lambda m: print(m, file=sys.stderr))
-    target = PROFILES["quick"].target_noise_db
+    target = defaults.REFERENCE["target_noise_db"]
     techs = {"No AA": taa_impl.make("noaa"), "FXAA": taa_impl.make("fxaa"),
              "SMAA": taa_impl.make("smaa", **overrides)}
     if args.baseline:

@@ -35,7 +35,7 @@ def render_sequence(name: str, w: int, h: int, n: int, cache_dir: Path | None = 
     scene = get_scene(name)
     far = float(scene.desc.camera.far)
     path = cache_dir / f"{name}_{w}x{h}_{n}.npz" if cache_dir else None
-    # study.protocols.ghosting_schedule: step t shows time t with jitter k = t, motion from t - 1
+    # study.config.protocols.ghosting_schedule: step t shows time t with jitter k = t, motion from t - 1
     steps = [(t, t, t - 1) for t in range(n)]
     resets = [scene.is_cut(t) for t in range(n)]
     if path is not None and path.exists():

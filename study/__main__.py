@@ -1,3 +1,3 @@
-from .cli import main
+from study.commands.cli import main
 
 main()

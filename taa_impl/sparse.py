@@ -35,7 +35,7 @@ code mirrored from BaselineTAA._step); then out = supersampled where invalid, th
 that composite is the new history (so a re-rendered pixel restarts its history from an N-sample
 estimate) and is sharpened for display exactly as the baseline's blend is.
 
-Driver protocol (class attribute `supersampling = True`; study.protocols drives it):
+Driver protocol (class attribute `supersampling = True`; study.engine.drive drives it):
   mask = tech.invalid_mask(frame, far=far)         # (H, W) bool, no state change
   supersampled = <mean of params.samples jittered samples, rendered where mask is set, 0 elsewhere>
   out = tech.process(frame, jitter=..., far=..., reset=..., supersampled=supersampled, mask=mask)

@@ -3,7 +3,7 @@ import json
 
 from click.testing import CliRunner
 
-from study.cli import main
+from study.commands.cli import main
 
 def moving_scene(frames: int = 4, size=(40, 24), segments: int = 12) -> str:
     """A ball moving over a checkered floor, direct light: the study tests' animated scene."""

@@ -7,8 +7,8 @@ from click.testing import CliRunner
 
 from references import ReferenceCache
 from scenes import get_scene
-from study.agreement import TARGETS, check_agreement
-from study.cli import main
+from study.engine.agreement import TARGETS, check_agreement
+from study.commands.cli import main
 
 
 @pytest.mark.parametrize("name,frame", [("sphere_ghosting", 7), ("text_wall", 0), ("flowers", 0)])

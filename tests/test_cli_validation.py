@@ -4,7 +4,7 @@ import json
 import pytest
 from click.testing import CliRunner
 
-from study.cli import main
+from study.commands.cli import main
 from study_fixtures import write_scenes
 
 

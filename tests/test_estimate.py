@@ -1,4 +1,4 @@
-"""study.estimate: the work units a plan implies, counted by hand for a tiny study."""
+"""study.engine.estimate: the work units a plan implies, counted by hand for a tiny study."""
 import json
 
 from study_fixtures import run_cli, write_scenes

@@ -14,8 +14,8 @@ from click.testing import CliRunner
 from references import ReferenceCache
 from scenes import SceneError, SceneWarning
 from scenes.loader import load_scene_file
-from study.agreement import TARGETS, check_agreement
-from study.cli import main
+from study.engine.agreement import TARGETS, check_agreement
+from study.commands.cli import main
 
 BOARD_TEX = np.random.default_rng(7).integers(60, 200, (4, 4, 3), dtype=np.uint8)
 LEAF_RGBA = np.array([[[200, 80, 40, 255], [200, 80, 40, 0]],

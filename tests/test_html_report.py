@@ -1,8 +1,8 @@
-"""The interactive comparison report (study.html_report): the page and its data without a browser,
+"""The interactive comparison report (study.reporting.html_report): the page and its data without a browser,
 then in headless Chromium (Debian's chromium through its chromium-driver): no console errors,
 flipping shows the expected technique's pixels, zoom enlarges pixels, maps one key away, exposure,
 ghosting slider and curve, sortable tables whose links open the viewer. One real tiny study
-(study.cli run) supplies the report the browser checks first."""
+(taa-study run) supplies the report the browser checks first."""
 import io
 import json
 import math
@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from study import html_report
-from study.html_report import ReportDataError
+from study.reporting import html_report
+from study.reporting.html_report import ReportDataError
 
 sys.path.insert(0, str(Path(__file__).parent))
 from study_fixtures import run_tiny_study  # noqa: E402
@@ -147,7 +147,7 @@ def tiny_study(tmp_path_factory):
     page = out / "report.html"
     hooked = page.exists()
     if not hooked:
-        print("note: study.cli run wrote no report.html; building it with html_report.write(out, collect(out))")
+        print("note: taa-study run wrote no report.html; building it with html_report.write(out, collect(out))")
         html_report.write(out, html_report.collect(out))
     return out, hooked
 
@@ -411,7 +411,7 @@ def test_browser_reports_a_missing_image_as_a_console_error(browser, tmp_path):
 
 
 def test_browser_steps_a_real_ghosting_sequence(browser, tiny_study):
-    """The study's own ghosting frames (written by study.cli run once it calls html_report.write):
+    """The study's own ghosting frames (written by taa-study run once it calls html_report.write):
     the slider steps frames and the canvas shows that frame's image of the technique chosen."""
     out, hooked = tiny_study
     ghosts = [v for v in page_model((out / "report.html").read_text())["viewers"] if v["kind"] == "ghosting"]

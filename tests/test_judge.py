@@ -1,4 +1,4 @@
-"""study.judge: a test's techniques judged together, each reference read once, the same figures as
+"""study.engine.judge: a test's techniques judged together, each reference read once, the same figures as
 judging each run alone (metrics.judge_run, the whole-sequence form)."""
 import functools
 import json
@@ -15,10 +15,11 @@ from test_estimate import STUDY
 def test_one_metrics_task_per_test_reads_each_reference_once_and_agrees_with_judge_run(tmp_path, monkeypatch):
     from display import DisplayTransform
     from references import cache as rc
-    from study import metrics as M
-    from study.config import TechniqueConfig, get_profile
-    from study.run import Study
-    from study.store import Store
+    from study.metrics import suite as M
+    from study.config.profile import get_profile
+    from study.config.techniques import TechniqueConfig
+    from study.engine.runner import Study
+    from study.engine.store import Store
 
     monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))
     scenes = write_scenes(tmp_path)
@@ -68,15 +69,16 @@ def test_one_metrics_task_per_test_reads_each_reference_once_and_agrees_with_jud
 
 
 def study_scene(spec):
-    from study.tasks import load_scene
+    from study.engine.tasks import load_scene
     return load_scene(spec)
 
 
 def test_runs_keep_only_the_frames_the_report_reads_and_are_remade_when_judged_again(tmp_path, monkeypatch):
-    from study.config import TechniqueConfig, get_profile
-    from study.plan import shown_frames
-    from study.run import Study
-    from study.store import Store
+    from study.config.profile import get_profile
+    from study.config.techniques import TechniqueConfig
+    from study.engine.plan import shown_frames
+    from study.engine.runner import Study
+    from study.engine.store import Store
     from study_fixtures import moving_scene
 
     monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))

@@ -9,11 +9,11 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ("backend", "provenance", "display", "scenes", "shading", "raster", "references", "taa_impl", "study")
 
-# The code each task kind's key names (study.plan.CODE); the test checks the files its closure holds.
+# The code each task kind's key names (study.engine.plan.CODE); the test checks the files its closure holds.
 PROBE = r'''
 import json, os, sys
 import backend, provenance, taa_impl
-from study.plan import CODE
+from study.engine.plan import CODE
 KINDS = {
     "run baseline": [taa_impl.BaselineTAA, *CODE["run"]],
     "run fxaa": [taa_impl.FXAA, *CODE["run"]],
@@ -44,18 +44,24 @@ print(json.dumps(report))
 '''
 
 
-def test_editing_any_dependency_changes_the_key(tmp_path):
+def probe_in_copy(tmp_path, probe: str):
+    """Run `probe` in a temporary copy of the project's packages; its last line of output as JSON."""
     for pkg in PACKAGES:
         shutil.copytree(ROOT / pkg, tmp_path / pkg, ignore=shutil.ignore_patterns("__pycache__"))
-    r = subprocess.run([sys.executable, "-c", PROBE], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    r = subprocess.run([sys.executable, "-c", probe], cwd=tmp_path, capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
-    report = json.loads(r.stdout.splitlines()[-1])
+    return json.loads(r.stdout.splitlines()[-1])
+
+
+def test_editing_any_dependency_changes_the_key(tmp_path):
+    report = probe_in_copy(tmp_path, PROBE)
     for kind, rep in report.items():
         assert rep["files"] and rep["unchanged"] == [], (kind, rep["unchanged"])
         assert rep["restored"], kind
     run_files = set(report["run baseline"]["files"])
     for f in ("raster/frames.py", "raster/visibility.py", "raster/shaders/vis.frag", "shading/surface.py",
-              "scenes/camera.py", "scenes/jitter.py", "study/protocols.py", "taa_impl/baseline.py",
+              "scenes/camera.py", "scenes/jitter.py", "study/config/protocols.py", "study/engine/drive.py",
+              "study/engine/run_task.py", "taa_impl/baseline.py",
               "taa_impl/kernels.py"):
         assert f in run_files, f
     for kind in ("run fxaa", "run smaa", "metrics", "reference"):
@@ -64,5 +70,64 @@ def test_editing_any_dependency_changes_the_key(tmp_path):
     assert "taa_impl/improved.py" in report["run improved"]["files"]
     assert "taa_impl/improved.py" not in run_files                          # an edit elsewhere: no recompute
     assert "references/render.py" in report["reference"]["files"]
-    assert "study/metrics.py" in report["metrics"]["files"]
+    for f in ("study/metrics/suite.py", "study/metrics/ssim.py", "study/metrics/flip.py", "study/metrics/filters.py",
+              "study/engine/judge.py"):
+        assert f in report["metrics"]["files"], f
     assert "references/render.py" in report["agreement"]["files"]
+
+
+# Which task kinds re-key when one module of the study is edited: the run key names only the code a
+# run uses (its driver, its task, the protocols, the technique), the metrics key only the metric code,
+# and the engine's bookkeeping, the defaults (their values reach keys as data), the reporting and
+# the commands re-key nothing.
+REKEY_PROBE = r'''
+import json, os, sys
+from pathlib import Path
+import provenance, taa_impl
+from study.engine.plan import CODE
+for m in sorted(Path("study").rglob("*.py")):          # every module loaded, as in a study process
+    name = ".".join(m.with_suffix("").parts).removesuffix(".__init__")
+    if name != "study.__main__":
+        __import__(name)
+KINDS = {"run": [taa_impl.BaselineTAA, *CODE["run"]], "metrics": list(CODE["metrics"]),
+         "reference": list(CODE["reference"]), "agreement": list(CODE["agreement"]),
+         "cost": [taa_impl.BaselineTAA, "study.engine.costs"]}
+out = {}
+for f in sorted(Path("study").rglob("*")):
+    if not f.is_file() or "__pycache__" in f.parts:
+        continue
+    before = {k: provenance.code_token(*c) for k, c in KINDS.items()}
+    text = f.read_bytes()
+    st = os.stat(f)
+    f.write_bytes(text + b"\n# edited\n")
+    os.utime(f, ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
+    out[str(f)] = sorted(k for k, c in KINDS.items() if provenance.code_token(*c) != before[k])
+    f.write_bytes(text)
+    os.utime(f, ns=(st.st_atime_ns, st.st_mtime_ns + 2 * 10**9))
+print(json.dumps(out))
+'''
+
+REKEYS = {
+    "study/metrics/suite.py": {"metrics"},
+    "study/metrics/ssim.py": {"metrics"},
+    "study/metrics/flip.py": {"metrics"},
+    "study/metrics/filters.py": {"metrics"},
+    "study/engine/judge.py": {"metrics"},
+    "study/engine/drive.py": {"run", "cost"},         # costs time the driver's steps
+    "study/engine/run_task.py": {"run"},
+    "study/config/protocols.py": {"run", "cost"},    # the schedules' steps and the raster frames they need
+    "study/engine/tasks.py": {"run", "metrics", "agreement"},   # the task contract: errors, setup
+    "study/engine/agreement.py": {"agreement"},
+    "study/engine/costs.py": {"cost"},
+}
+
+
+def test_each_study_module_rekeys_only_what_it_makes(tmp_path):
+    got = probe_in_copy(tmp_path, REKEY_PROBE)
+    assert len(got) > 40, sorted(got)
+    wrong = {}
+    for f, kinds in got.items():
+        want = next((v for k, v in REKEYS.items() if f == k or (k.endswith("/") and f.startswith(k))), set())
+        if set(kinds) != want:
+            wrong[f] = (kinds, sorted(want))
+    assert not wrong, wrong      # file -> (kinds it re-keys, kinds it should)

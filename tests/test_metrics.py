@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from study import metrics
+from study.metrics import suite as metrics
 
 
 def test_mse_psnr_snr_by_hand():

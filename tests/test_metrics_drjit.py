@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from skimage.metrics import structural_similarity
 
-from study import flip as F
-from study import metrics
+from study.metrics import flip as F
+from study.metrics import suite as metrics
 
 TOL = 1e-5   # the brief's bound on means and maps; measured margins are in the assertions' comments
 
@@ -234,7 +234,7 @@ def test_judge_run_keeps_maps_only_for_the_frames_asked():
 
 
 def test_flip_memo_keeps_the_reference_half_and_changes_no_bit():
-    """Judging several images against one reference reuses its half of FLIP (study.judge): the maps
+    """Judging several images against one reference reuses its half of FLIP (study.engine.judge): the maps
     are bit-identical to computing everything per pair, and the memo holds one entry per mode and
     HDR exposure."""
     rng = np.random.default_rng(3)

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from study.cli import main
+from study.commands.cli import main
 from study_fixtures import write_scenes
 
 README = (Path(__file__).parent.parent / "README.md").read_text()
@@ -91,7 +91,8 @@ def test_bad_study_files_exit_2_naming_file_field_and_value(tmp_path, text, mess
 
 
 def test_reproduction_finds_the_thesis_techniques_whatever_their_labels(tmp_path, monkeypatch):
-    from study.config import TechniqueConfig, thesis_roles
+    from study.config.profile import thesis_roles
+    from study.config.techniques import TechniqueConfig
     configs = [TechniqueConfig.parse(s) for s in ("Base=taa_baseline", "Imp=taa_improved",
                                                   "Imp sharp none=taa_improved:sharpen=none", "Plain=noaa")]
     assert thesis_roles(configs) == {"No AA": "Plain", "Uncharted": "Base", "Improved": "Imp"}
@@ -108,7 +109,7 @@ def test_a_technique_from_an_installed_package_entry_point(tmp_path, monkeypatch
     (info / "entry_points.txt").write_text("[taa_study.techniques]\ncentre_ep = my_aa_pkg:Centre\n")
     monkeypatch.syspath_prepend(str(tmp_path))
     from provenance import code_token
-    from study.config import TechniqueConfig, resolve_technique
+    from study.config.techniques import TechniqueConfig, resolve_technique
     cls = resolve_technique("centre_ep")
     assert cls.__name__ == "Centre" and TechniqueConfig.parse("centre_ep").make().name == "centre_ep"
     assert "my_aa_pkg" in TechniqueConfig.parse("centre_ep").key_data()["class"]

@@ -1,5 +1,5 @@
-"""Comparison figures with insets (study.figures) on synthetic images, and the paper's PDF
-(study.paper_pdf + paper/main.tex) built from a real tiny study's tables and figures where LaTeX is
+"""Comparison figures with insets (study.reporting.figures) on synthetic images, and the paper's PDF
+(study.reporting.paper_pdf + paper/main.tex) built from a real tiny study's tables and figures where LaTeX is
 installed (`make paper` installs it; elsewhere that test is skipped with the reason)."""
 import io
 import re
@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from study import paper_pdf
-from study.figures import comparison_figure, inset_regions
+from study.reporting import paper_pdf
+from study.reporting.figures import comparison_figure, inset_regions
 
 sys.path.insert(0, str(Path(__file__).parent))
 from study_fixtures import run_tiny_study  # noqa: E402

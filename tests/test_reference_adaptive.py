@@ -138,7 +138,7 @@ def test_recorded_spp_is_the_rays_traced(monkeypatch):
 def test_agreement_fails_a_frame_of_background_only(tmp_path):
     """A camera that sees nothing agrees perfectly with its reference, and must not pass."""
     from references import ReferenceCache
-    from study.agreement import check_agreement
+    from study.engine.agreement import check_agreement
     scene = _edge_scene()
     away = ResolvedScene(scene.desc.model_copy(update={"camera": scene.desc.camera.model_copy(
         update={"target": (0.0, 0.0, 10.0)})}))           # looking away from both quads

@@ -79,7 +79,7 @@ def test_a_subset_run_leaves_no_table_of_the_first(tmp_path, monkeypatch):
 
 def test_files_get_the_users_umask(tmp_path):
     code = ("import os, sys; os.umask(0o022); sys.path.insert(0, 'tests');"
-            "from pathlib import Path; from study.store import Store, write_text_atomic; import numpy as np;"
+            "from pathlib import Path; from study.engine.store import Store, write_text_atomic; import numpy as np;"
             f"root = Path({str(tmp_path)!r});"
             "write_text_atomic(root / 'a.txt', 'x');"
             "Store(root).save_folder(root / 'f', 'k', {'frame_0001.exr': np.zeros((2, 2, 3), np.float32)}, {})")

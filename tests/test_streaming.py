@@ -1,4 +1,4 @@
-"""Runs hand each judged frame on as it is made (study.protocols.run_schedule's emit): a 100-frame
+"""Runs hand each judged frame on as it is made (study.engine.drive.run_schedule's emit): a 100-frame
 sequence of ten techniques at 1600x900 would otherwise hold 17 GB."""
 import numpy as np
 
@@ -7,8 +7,9 @@ from study_fixtures import moving_scene
 
 def test_emit_gets_every_judged_frame_in_order_and_nothing_is_held(tmp_path):
     from scenes import get_scene
-    from study.config import TechniqueConfig
-    from study.protocols import Protocol, run_schedule
+    from study.config.techniques import TechniqueConfig
+    from study.engine.drive import run_schedule
+    from study.config.protocols import Protocol
 
     path = tmp_path / "m.toml"
     path.write_text(moving_scene(frames=5, size=(24, 16)))

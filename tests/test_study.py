@@ -5,7 +5,7 @@ import json
 import pytest
 from click.testing import CliRunner
 
-from study.cli import main
+from study.commands.cli import main
 from study_fixtures import moving_scene
 
 SCENE = moving_scene(frames=5, size=(48, 27), segments=16)

@@ -39,7 +39,7 @@ def test_local_cluster_gives_the_in_process_numbers_and_survives_a_killed_worker
     run_cli(["run", "--scenes", ",".join(scenes), "--no-agreement", *TECHS, "--out", tmp_path / "a"])
     s_a = summary(tmp_path / "a")
     # 2 statics x 3, cold ghosting x 3, warm ghosting only the TAA: No AA and FXAA have no history,
-    # so their warm runs are their cold ones (study.plan.run_steps)
+    # so their warm runs are their cold ones (study.engine.plan.run_steps)
     assert s_a["runs_computed"] == 2 * 3 + 3 + 1 and s_a["executor"] == "in-process"
     cold, warm = ((tmp_path / "a" / "tables" / f"{p}_tiny_moving.csv").read_text().splitlines()
                   for p in ("ghosting", "ghosting_warm"))

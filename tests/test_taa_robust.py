@@ -27,7 +27,7 @@ TOL = 1e-4   # TAAParams.clip_tol's default, repeated so the hand cases below st
 
 @pytest.fixture(scope="module")
 def sequences():
-    """scene -> (frames, resets, far): the ghosting schedule (study.protocols.ghosting_schedule):
+    """scene -> (frames, resets, far): the ghosting schedule (study.config.protocols.ghosting_schedule):
     step t shows scene time t with jitter halton_offset(t, 16), motion from t - 1, and the history
     is reset at t = 0 and at camera cuts."""
     from raster import Rasterizer

@@ -17,7 +17,7 @@ FAR = 100.0
 
 
 def drive(tech, frame, supersampled_of=None, reset=False, jitter=(0.0, 0.0)):
-    """What study.protocols does: mask first, then render the supersampled colour there, then process.
+    """What study.engine.drive does: mask first, then render the supersampled colour there, then process.
     `supersampled_of(frame, mask)` stands in for the raster (default: a marker colour)."""
     mask = tech.invalid_mask(frame, far=FAR, reset=reset)
     ss = (np.full(frame["color"].shape, 7.0, F) if supersampled_of is None

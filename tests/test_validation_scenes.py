@@ -223,7 +223,7 @@ def test_obj_in_any_encoding_loads(tmp_path, encoding):
     ("lights[0].direction[1]", float("nan"), "nan"),
 ])
 def test_cli_exits_2_on_a_bad_scene(tmp_path, command, field, value, shown):
-    from study.cli import main
+    from study.commands.cli import main
     data = copy.deepcopy(FULL)
     for path, node, key in _float_leaves(data):
         if path == field:
@@ -240,7 +240,7 @@ def test_cli_exits_2_on_a_bad_scene(tmp_path, command, field, value, shown):
 
 
 def test_cli_exits_2_on_all_degenerate_mesh(tmp_path):
-    from study.cli import main
+    from study.commands.cli import main
     (tmp_path / "model.obj").write_text(OBJ_HEAD + "f 1 2 4\n")
     (tmp_path / "scene.toml").write_text(SCENE_WITH_OBJ)
     res = CliRunner().invoke(main, ["agree", "--scene", str(tmp_path / "scene.toml")])

@@ -1,0 +1,1 @@
+"""The `taa-study` command line and the scripted comparisons it offers (ab, bench)."""

@@ -1,0 +1,164 @@
+"""What the `taa-study` commands share: the command group, failing with exit status 2, and the
+options and helpers of the study commands."""
+from __future__ import annotations
+
+import json
+import sys
+
+import click
+
+
+def _fail(msg: str) -> None:
+    click.echo(f"error: {msg}", err=True)
+    sys.exit(2)
+
+
+def _scene_and_size(name: str, profile: str, width: int | None, height: int | None):
+    from scenes import SceneError, get_scene
+    try:
+        scene = get_scene(name)
+        w, h = scene.resolution(profile)
+    except SceneError as exc:
+        _fail(str(exc))
+    return scene, (w if width is None else width), (h if height is None else height)
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+def main():
+    """Reference-and-comparison study of temporal anti-aliasing."""
+
+
+def _scene_list(ctx, param, value):
+    """Comma-separated scenes: empty items refused, duplicates dropped with a note."""
+    if value is None:
+        return None
+    items = [v.strip() for v in value.split(",")]
+    if not any(items) or any(not v for v in items):
+        raise click.BadParameter(f"{value!r} names an empty scene; give comma-separated scene names or files")
+    out = list(dict.fromkeys(items))
+    if len(out) < len(items):
+        dup = sorted({v for v in items if items.count(v) > 1})
+        click.echo(f"note: {param.opts[0]}: duplicate scene(s) {', '.join(dup)} taken once", err=True)
+    return out
+
+
+def _executor(workers, threads, scheduler):
+    from study.engine.execute import Executor
+    if scheduler and workers:
+        _fail("give either --workers N (a local cluster) or --scheduler ADDRESS, not both")
+    if scheduler:
+        return Executor("scheduler", address=scheduler, threads=threads)
+    if workers:
+        return Executor("local", workers=workers, threads=threads)
+    return Executor("in-process", threads=threads)
+
+
+def _strict_json(obj) -> str:
+    """One strict JSON document: NaN and infinities (undefined or unbounded figures) become null."""
+    import math
+
+    def clean(o):
+        if isinstance(o, float) and not math.isfinite(o):
+            return None
+        if isinstance(o, dict):
+            return {str(k): clean(v) for k, v in o.items()}
+        if isinstance(o, (list, tuple)):
+            return [clean(v) for v in o]
+        return o
+    return json.dumps(clean(obj), allow_nan=False, default=str)
+
+
+EXECUTION_OPTIONS = [
+    click.option("--workers", type=click.IntRange(min=1), default=None,
+                 help="Run the tasks on a local Dask cluster of N worker processes."),
+    click.option("--threads", type=click.IntRange(min=1), default=None,
+                 help="Dr.Jit threads per process (default: all cores)."),
+    click.option("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                 help="Run the tasks on an existing Dask scheduler (the cache must be on a filesystem every "
+                      "worker sees)."),
+]
+
+
+def _execution_options(f):
+    for opt in reversed(EXECUTION_OPTIONS):
+        f = opt(f)
+    return f
+
+
+def _techniques(tech_list, default=()):
+    from study.config.techniques import TechniqueConfig, available
+    try:
+        configs = [TechniqueConfig.parse(t) for t in tech_list] if tech_list else list(default)
+    except ValueError as exc:
+        _fail(str(exc))
+    configs, missing = available(configs)
+    if missing:
+        from study.config.techniques import resolve_technique
+        try:
+            resolve_technique(missing[0].name)
+        except ValueError as exc:
+            _fail(str(exc))
+    labels = [c.label for c in configs]
+    if len(set(labels)) != len(labels):
+        _fail(f"technique labels must be unique, got {labels}")
+    try:
+        for c in configs:
+            c.make()
+    except (TypeError, ValueError, KeyError) as exc:
+        _fail(f"bad technique parameters: {exc}")
+    return configs
+
+
+def _profile(study_file, profile):
+    from study.config.profile import get_profile
+    from study.config.studyfile import StudyFileError
+    try:
+        return get_profile(study_file or profile)
+    except StudyFileError as exc:
+        _fail(str(exc))
+
+
+def _load_scenes(names):
+    from scenes import SceneError
+    from study.engine.tasks import load_scene
+    try:
+        return [load_scene(n) for n in names]
+    except SceneError as exc:
+        _fail(str(exc))
+
+
+def run_study(profile, names, configs, out_dir, no_agreement, executor, sweep=True):
+    """The study end to end: plan and execute its tasks (study.engine.runner), then write its tables, figures
+    and report (study.reporting.report.write_study). `profile`: a Profile (study file). Returns the folder."""
+    import time as _time
+    from pathlib import Path
+
+    from study.config.profile import SPARSE_SWEEP
+    from study.reporting.report import write_study
+    from study.engine.runner import Study
+    from study.engine.tasks import TaskError
+
+    start = _time.perf_counter()
+    _load_scenes(names)
+    study = Study(profile, executor=executor)
+    sweep_cfg = SPARSE_SWEEP if sweep else ()
+    try:
+        res = study.run(names, configs, agreement=not no_agreement, sweep=sweep_cfg)
+    except TaskError as exc:
+        _fail(str(exc))
+    out = Path(out_dir or study.profile.out or f"out/{study.profile.name}")
+    summary = {**res.stats, "profile": study.profile.name, "scenes": names,
+               "techniques": [c.label for c in configs], "executor": executor.describe()}
+    write_study(out, res, configs, summary, start)
+    click.echo((out / "tables" / "headline.md").read_text())
+    if (out / "tables" / "reproduction.md").exists():
+        click.echo((out / "tables" / "reproduction.md").read_text())
+    click.echo(f"runs computed {res.stats['runs_computed']}, cached {res.stats['runs_cached']}; "
+               f"metrics computed {res.stats['metrics_computed']}; references rendered "
+               f"{res.stats['references_rendered']}; {_time.perf_counter() - start:.1f} s; artefacts in {out}/, "
+               f"report {out / 'report.html'}")
+    return out
+
+
+PROFILE_OPTION = click.option("--profile", type=click.Choice(["quick", "full"]), default="quick", show_default=True,
+                              help="A built-in study file (study/profiles/); STUDY_FILE replaces it.")

@@ -1,0 +1,232 @@
+"""The commands that run studies: `run`, `estimate`, `bench`, `ab` and `paper`."""
+from __future__ import annotations
+
+import sys
+
+import click
+
+from study.commands.common import (PROFILE_OPTION, _execution_options, _executor, _fail,
+                                   _load_scenes, _profile, _scene_list, _strict_json, _techniques, main,
+                                   run_study)
+
+
+@main.command()
+@click.argument("study_file", required=False, type=click.Path(dir_okay=False))
+@PROFILE_OPTION
+@click.option("--scenes", "scene_list", default=None, callback=_scene_list,
+              help="Comma-separated scenes (default: the study file's, or every built-in).")
+@click.option("--techniques", "tech_list", multiple=True,
+              help="Technique as 'name', 'file.py:Class' or 'Label=name:field=value,...' (repeatable; "
+                   "default: the study file's).")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
+              help="Output folder (default: the study file's, or out/<name>); it keeps only this study's files.")
+@click.option("--no-agreement", is_flag=True, help="Skip the per-scene reference agreement figure.")
+@_execution_options
+def run(study_file, profile, scene_list, tech_list, out_dir, no_agreement, workers, threads, scheduler):
+    """Run a study (a study file, or a built-in profile) and write tables, maps and plots (make-style)."""
+    from scenes import builtin_names
+    prof = _profile(study_file, profile)
+    names = scene_list or list(prof.scenes) or builtin_names()
+    configs = _techniques(tech_list, prof.techniques)
+    run_study(prof, names, configs, out_dir, no_agreement or not prof.agreement,
+              _executor(workers, threads, scheduler), sweep=prof.sweep and not tech_list)
+
+
+@main.command()
+@click.argument("study_file", required=False, type=click.Path(dir_okay=False))
+@PROFILE_OPTION
+@click.option("--scenes", "scene_list", default=None, callback=_scene_list,
+              help="Comma-separated scenes (default: the study file's, or every built-in).")
+@click.option("--measure/--no-measure", default=False, show_default=True,
+              help="Time one unit of each kind per scene here (renders and caches frame 0's reference) "
+                   "and extrapolate the study's wall time.")
+@click.option("--from-scratch", is_flag=True,
+              help="Count the whole study's work as on an empty cache (the units are still measured with the cache).")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON document instead of the table.")
+def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
+    """What a study would compute (work units per scene, only what the cache lacks) and, with
+    --measure, what that costs on this machine, extrapolated from one unit of each kind."""
+    from scenes import builtin_names
+    from study.engine import estimate as E
+    from study.config.profile import SPARSE_SWEEP
+    from study.engine.runner import Study
+    from study.engine.tasks import TaskError
+    prof = _profile(study_file, profile)
+    names = scene_list or list(prof.scenes) or builtin_names()
+    configs = _techniques((), prof.techniques)
+    _load_scenes(names)
+    import tempfile
+    from pathlib import Path
+    study = Study(prof, progress=False)
+    with tempfile.TemporaryDirectory() as empty:
+        planner = Study(prof, cache_root=Path(empty), progress=False) if from_scratch else study
+        plan = planner.plan(names, configs, agreement=prof.agreement, sweep=SPARSE_SWEEP if prof.sweep else ())[0]
+        work = E.work(plan, None if from_scratch else study.cache)
+    rows, totals = [], {}
+    for name, sw in work.items():
+        row = {"scene": name, "resolution": [sw.width, sw.height], "references": sw.references,
+               "raster_frames": sw.raster_frames, "subframes": sum(sw.subframes.values()),
+               "technique_steps": sum(sw.steps.values()), "technique_frames_judged": sum(sw.judged.values()),
+               "agreement_frames": sw.agreement_frames}
+        if measure:
+            click.echo(f"estimate: measuring {name} at {sw.width}x{sw.height} ...", err=True)
+            try:
+                units = E.measure_units(sw, study.ref_settings, study.cache,
+                                        [c for c in configs if c.label in sw.configs] or configs[:1])
+            except TaskError as exc:
+                _fail(str(exc))
+            row["unit_s"] = {k: v for k, v in units.items() if k != "subframe_s"}
+            row["seconds"] = E.estimate(sw, units)
+            for k, v in row["seconds"].items():
+                totals[k] = totals.get(k, 0.0) + v
+        rows.append(row)
+    doc = {"study": prof.name, "tasks": plan.counts(), "complete": len(plan.cached), "scenes": rows}
+    if measure:
+        doc["seconds"] = totals
+    if as_json:
+        click.echo(_strict_json(doc))
+        return
+    click.echo(f"{prof.name}: tasks to compute {plan.counts() or 'none'}, {len(plan.cached)} complete")
+    head = "scene | res | refs | raster | subframes | steps | judged | agreement"
+    if measure:
+        head += " | ref s/frame | metrics s/frame | est. ref min | est. total min"
+    click.echo(head)
+    for r in rows:
+        line = (f"{r['scene']} | {r['resolution'][0]}x{r['resolution'][1]} | {r['references']} | "
+                f"{r['raster_frames']} | {r['subframes']} | {r['technique_steps']} | "
+                f"{r['technique_frames_judged']} | {r['agreement_frames']}")
+        if measure:
+            u, sec = r["unit_s"], r["seconds"]
+            line += (f" | {u['reference_s']:.1f} | {u['metrics_s']:.3f} | {sec['reference'] / 60:.1f}"
+                     f" | {sec['total'] / 60:.1f}")
+        click.echo(line)
+    if measure:
+        click.echo("extrapolated minutes: " + ", ".join(f"{k} {v / 60:.1f}" for k, v in totals.items())
+                   + " (references of moving scenes taken at frame 0's cost)")
+
+
+def _technique_names(ctx, param, value):
+    if not value:
+        return value
+    import taa_impl
+    bad = [v for v in value if v not in taa_impl.TECHNIQUES]
+    if bad:
+        raise click.BadParameter(f"unknown technique(s) {', '.join(bad)}; known: {', '.join(sorted(taa_impl.TECHNIQUES))}")
+    return tuple(dict.fromkeys(value))
+
+
+@main.command()
+@click.option("--width", default=1600, show_default=True, type=click.IntRange(min=8))
+@click.option("--height", default=900, show_default=True, type=click.IntRange(min=8))
+@click.option("--repeats", default=7, show_default=True, type=click.IntRange(min=1),
+              help="Timed runs per technique (median).")
+@click.option("--technique", "tech_names", multiple=True, callback=_technique_names,
+              help="Only these techniques (repeatable).")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+def bench(width, height, repeats, tech_names, as_json):
+    """Time each technique per frame against its NumPy oracle and the bandwidth floor."""
+    from study.commands.bench import bench as run_bench
+    res = run_bench(width, height, repeats, list(tech_names) or None,
+                    log=(lambda m: None) if as_json else (lambda m: click.echo(m, err=True)))
+    if as_json:
+        click.echo(_strict_json(res))
+        return
+    click.echo(f"{width}x{height}, backend {res['backend']}, copy bandwidth {res['copy_bandwidth_gbs']:.2f} GB/s")
+    click.echo(f"{'technique':24s} {'Dr.Jit ms':>10s} {'e2e ms':>8s} {'NumPy ms':>10s} {'speed-up':>9s} "
+               f"{'floor ms':>9s} {'x floor':>8s}")
+    for name, t in res["techniques"].items():
+        ms, floor = t["ms"], res["bandwidth_floor_ms"][name]
+        npm = res["numpy_ms"].get(name)
+        click.echo(f"{name:24s} {ms:10.2f} {res['end_to_end_ms'][name]:8.2f} "
+                   f"{(f'{npm:10.1f}' if npm else '         –')} {(f'{npm / ms:8.1f}x' if npm else '        –')} "
+                   f"{floor:9.2f} {ms / floor:7.1f}x")
+
+
+@main.command()
+@click.argument("a")
+@click.argument("b")
+@click.option("--scenes", "scene_list", default=None, callback=_scene_list,
+              help="Comma-separated scenes (default: the study file's, or pipe,sphere_ghosting).")
+@PROFILE_OPTION
+@click.option("--study", "study_file", type=click.Path(dir_okay=False), default=None,
+              help="A study file for the scenes, resolution, protocols and reference settings.")
+@click.option("--max-worse", "gates", multiple=True,
+              help="METRIC=THRESHOLD: exit 1 if B is worse than A by more than THRESHOLD on average "
+                   "(e.g. psnr=0.25, ssim=0.002, mse=1.0, flip_ldr=0.002). Repeatable.")
+@click.option("--json", "as_json", is_flag=True, help="Print one strict JSON object (nothing else on stdout).")
+@_execution_options
+def ab(a, b, scene_list, profile, study_file, gates, as_json, workers, threads, scheduler):
+    """Compare technique configuration B against A: paired differences with bootstrap intervals.
+
+    A and B are 'name' or 'Label=name:field=value,...', e.g.
+    taa-study ab taa_baseline "taa_baseline:sharpen=normalised" --max-worse psnr=0.25"""
+    from study.commands.ab import AB_METRICS, compare
+    from study.engine.runner import Study
+    from study.engine.tasks import TaskError
+    ca, cb = _techniques((a, b)) if a != b else (_techniques((a,))[0], _techniques((a,))[0])
+    prof = _profile(study_file, profile)
+    scene_list = scene_list or list(prof.scenes) or ["pipe", "sphere_ghosting"]
+    _load_scenes(scene_list)
+    limits = {}
+    for g in gates:
+        m, eq, v = g.partition("=")
+        if not eq or m not in AB_METRICS:
+            _fail(f"--max-worse {g!r}: expected METRIC=THRESHOLD with METRIC in {', '.join(AB_METRICS)}")
+        try:
+            limits[m] = float(v)
+        except ValueError:
+            _fail(f"--max-worse {g!r}: threshold {v!r} is not a number")
+    try:
+        res = compare(ca, cb, scene_list, prof, progress=not as_json,
+                      study=Study(prof, progress=not as_json, executor=_executor(workers, threads, scheduler)))
+    except TaskError as exc:
+        _fail(str(exc))
+    failed = {m: res.worse_by(m) for m, lim in limits.items() if res.worse_by(m) > lim}
+    if as_json:
+        click.echo(_strict_json({**res.as_dict(), "gates": limits, "failed": failed}))
+    else:
+        click.echo(f"B = {res.b}  vs  A = {res.a}   (differences B - A, mean [95 % bootstrap CI], n pairs)")
+        for scene, per in list(res.per_scene.items()) + [("OVERALL", res.overall)]:
+            cells = []
+            for m, v in per.items():
+                ci = f"[{v['ci'][0]:+.3g}, {v['ci'][1]:+.3g}]" if v["ci"] else "[no interval: one pair]"
+                mean = "–" if v["mean"] is None else f"{v['mean']:+.4g}"
+                cells.append(f"{m} {mean} {ci} n={v['n']}")
+            click.echo(f"  {scene:18s} " + "; ".join(cells))
+        click.echo(f"  cost: A {res.ms['a']:.2f} ms, B {res.ms['b']:.2f} ms per frame ({res.ms['diff']:+.2f} ms)")
+        for m, w in failed.items():
+            click.echo(f"  GATE FAILED: B is worse than A on {m} by {w:.4g} (> {limits[m]})")
+    if failed:
+        sys.exit(1)
+
+
+@main.command()
+@click.argument("study_file", required=False, type=click.Path(dir_okay=False))
+@PROFILE_OPTION
+@click.option("--scenes", "scene_list", default=None, callback=_scene_list,
+              help="Comma-separated scenes (default: the study file's, or every built-in).")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
+              help="The study's output folder (default: the study file's, or out/<name>).")
+@click.option("--no-pdf", is_flag=True, help="Only regenerate paper/generated/, do not run LaTeX.")
+@_execution_options
+def paper(study_file, profile, scene_list, out_dir, no_pdf, workers, threads, scheduler):
+    """Regenerate the study, copy its tables and figures into paper/generated/, build the PDF."""
+    from pathlib import Path
+
+    from scenes import builtin_names
+    from study.reporting import paper_pdf
+
+    prof = _profile(study_file, profile)
+    src = run_study(prof, scene_list or list(prof.scenes) or builtin_names(), _techniques((), prof.techniques),
+                    out_dir, not prof.agreement, _executor(workers, threads, scheduler), sweep=prof.sweep)
+    root = Path(__file__).resolve().parent.parent / "paper"
+    got = paper_pdf.fill_generated(src, root)       # only what this study's manifest lists
+    click.echo(f"paper/generated/: {len(got['tables'])} tables, {len(got['figures'])} figures")
+    if no_pdf:
+        return
+    try:
+        pdf = paper_pdf.build_pdf(root)
+    except paper_pdf.PaperError as exc:
+        _fail(str(exc))
+    info = paper_pdf.contents(root)
+    click.echo(f"built {pdf} ({info.get('pages', '?')} pages)")

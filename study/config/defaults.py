@@ -1,0 +1,20 @@
+"""The study's defaults, each in one place: the protocols, the profiles' settings, the study file's
+fields and the command line read them from here (the reference's own are references.settings)."""
+from references import settings as _reference
+
+# The thesis keeps frame 16 after a reset (its static protocol, a cold start).
+THESIS_HISTORY = 16
+# The study's static run: 256 frames of history (with k_max = 0.979 the first frame weighs 0.4 %),
+# judged at log-spaced history lengths.
+STATIC_HISTORY = 256
+STATIC_CHECKPOINTS = (1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256)
+# The ghosting test: judged frames (capped by the scene's own) and unjudged warm-up frames.
+GHOSTING_FRAMES = 24
+GHOSTING_WARMUP = 0
+
+REFERENCE = dict(_reference.DEFAULTS)          # se_bound_lsb, target_noise_db
+AGREEMENT_SAMPLES = 64                         # raster frames the agreement check averages
+AGREEMENT_TARGET_NOISE_DB = _reference.TARGET_NOISE_DB
+SWEEP_SCENES = ("sphere_ghosting", "disocclusion")   # where the sparse-supersampling mu sweep runs
+GHOSTING_SKIP = ("accumulation",)              # N sub-frames per frame: too slow for sequences
+KEEP_FRAMES = "report"                         # a run keeps, once judged, the frames the report reads

@@ -1,0 +1,71 @@
+"""Profiles: a whole study as its study file describes it (study.config.studyfile; the built-in
+quick and full profiles are such files), and the thesis's columns among its techniques."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from . import defaults as D
+from study.config.protocols import Protocol
+from .techniques import TechniqueConfig
+
+# Sparse supersampling's threshold mu against its cost (seed 002 chose 0.2 as the trade-off).
+SPARSE_SWEEP = tuple(TechniqueConfig(f"Sparse mu={mu}", "taa_sparse", (("mu", mu),))
+                     for mu in (0.05, 0.1, 0.2, 0.4, 0.8))
+
+THESIS_HISTORY = D.THESIS_HISTORY
+
+# The thesis's columns by what they are: a registry technique with its default parameters.
+THESIS_TECHNIQUES = {"No AA": "noaa", "FXAA": "fxaa", "SMAA": "smaa", "Uncharted": "taa_baseline",
+                     "Improved": "taa_improved"}
+
+
+def thesis_roles(configs) -> dict[str, str]:
+    """Thesis column -> label of the first config that is that technique with default parameters."""
+    out = {}
+    for role, name in THESIS_TECHNIQUES.items():
+        for c in configs:
+            if c.is_default(name):
+                out[role] = c.label
+                break
+    return out
+
+
+@dataclass(frozen=True)
+class Profile:
+    """A whole study as a study file describes it (study.config.studyfile; the built-in profiles are files)."""
+    name: str
+    resolution: object                    # 'quick' | 'full' (each scene's own) | (w, h)
+    static: Protocol
+    ghosting: tuple = ()                  # ghosting protocols
+    ref_settings: tuple = tuple(D.REFERENCE.items())     # ReferenceCache.get settings
+    ghosting_techniques_skip: tuple = D.GHOSTING_SKIP
+    sweep_scenes: tuple = D.SWEEP_SCENES
+    agreement_samples: int = D.AGREEMENT_SAMPLES
+    scenes: tuple = ()                    # scene specs; () = every built-in
+    techniques: tuple = ()                # TechniqueConfigs
+    out: str | None = None
+    agreement: bool = True
+    sweep: bool = False
+    thesis_history: int = THESIS_HISTORY
+    keep_frames: str = D.KEEP_FRAMES      # 'report': a run keeps, once judged, the frames the report reads; 'all'
+    source: str = ""
+
+    @property
+    def static_views(self) -> dict[str, int]:
+        """Labelled static protocols read from the one static run: label -> history length."""
+        views = {f"thesis ({self.thesis_history} frames, cold)": self.thesis_history}
+        if self.static.history != self.thesis_history:
+            views[f"converged ({self.static.history} frames)"] = self.static.history
+        return views
+
+
+def get_profile(name_or_file) -> Profile:
+    """A built-in profile by name or a study file by path (study.config.studyfile)."""
+    from study.config import studyfile
+    if isinstance(name_or_file, Profile):
+        return name_or_file
+    if str(name_or_file).endswith(".toml"):
+        return studyfile.load_study(name_or_file)
+    return studyfile.profile(name_or_file)
+
+

@@ -1,0 +1,202 @@
+"""Study files: a TOML file describes a whole study; the built-in quick and full profiles are
+such files (study/config/profiles/*.toml).
+
+    name = "my_study"
+    scenes = ["pipe", "scenes/my_model.toml"]       # built-in names or scene files; [] = every built-in
+    resolution = "quick"                             # "quick" | "full" (each scene's own) | [w, h]
+    out = "out/my_study"                             # default: out/<name>
+    agreement = true                                 # the reference agreement figure under each table
+    sweep = false                                    # sparse supersampling's mu sweep
+
+    [[techniques]]                                   # [] = the thesis's set and the other sources'
+    label = "Uncharted"
+    technique = "taa_baseline"                       # registry name, entry point or "file.py:Class"
+    params = { sharpen = "normalised" }
+    [[techniques]]
+    spec = "Mine=my_taa.py:Box3x3TAA:widen=0.25"     # or the command line's form
+
+    [protocols.static]
+    history = 256                                    # frames of history of the run
+    checkpoints = [1, 2, 4, 8, 16, 32, 64, 128, 256] # history lengths judged
+    thesis_history = 16                              # the labelled thesis protocol
+    [[protocols.ghosting]]
+    name = "ghosting"
+    frames = 24
+    warmup = 0                                       # frames at the first instant, not judged
+    [reference]
+    se_bound_lsb = 0.5                               # settings of references.ReferenceCache.get
+    target_noise_db = 60.0
+
+Relative paths (scenes, technique files, out) are relative to the study file. A bad file exits 2
+with the file, the field and the value.
+"""
+from __future__ import annotations
+
+import inspect
+import tomllib
+from pathlib import Path
+from typing import Any, Literal, Union
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+
+from . import defaults as D
+from .profile import Profile
+from .protocols import Protocol
+from .techniques import TechniqueConfig
+
+PROFILE_DIR = Path(__file__).resolve().parent / "profiles"
+
+
+class StudyFileError(ValueError):
+    pass
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+class TechniqueEntry(_Model):
+    label: str | None = None
+    technique: str | None = None
+    params: dict[str, Any] = Field(default_factory=dict)
+    spec: str | None = None
+
+    def config(self, base: Path) -> TechniqueConfig:
+        if (self.spec is None) == (self.technique is None):
+            raise ValueError("give either spec = 'Label=name:field=value' or technique = 'name' (with label, params)")
+        if self.spec is not None:
+            if self.label or self.params:
+                raise ValueError("spec already holds the label and parameters")
+            text = self.spec
+        else:
+            text = self.technique
+        if ".py:" in text:
+            head, _, tail = text.rpartition(".py:")
+            lab, eq, path = head.rpartition("=") if "=" in head else ("", "", head)
+            if not Path(path + ".py").is_absolute():
+                path = str(base / (path + ".py"))[:-3]
+            text = f"{lab}{eq}{path}.py:{tail}"
+        c = TechniqueConfig.parse(text)
+        if self.technique is not None:
+            c = TechniqueConfig(self.label or c.label, c.name,
+                                tuple((k, tuple(v) if isinstance(v, list) else v) for k, v in self.params.items()))
+        return c
+
+
+class StaticEntry(_Model):
+    history: int = Field(D.STATIC_HISTORY, ge=1)
+    checkpoints: list[int] = Field(default_factory=lambda: list(D.STATIC_CHECKPOINTS))
+    thesis_history: int = Field(D.THESIS_HISTORY, ge=1)
+
+
+class GhostingEntry(_Model):
+    name: str
+    frames: int = Field(D.GHOSTING_FRAMES, ge=1)
+    warmup: int = Field(D.GHOSTING_WARMUP, ge=0)
+
+
+class ProtocolsEntry(_Model):
+    static: StaticEntry = Field(default_factory=StaticEntry)
+    ghosting: list[GhostingEntry] = Field(default_factory=lambda: [GhostingEntry(name="ghosting")])
+
+
+class StudyModel(_Model):
+    name: str = Field(min_length=1)
+    scenes: list[str] = Field(default_factory=list)
+    resolution: Union[Literal["quick", "full"], tuple[int, int]] = "quick"
+    out: str | None = None
+    agreement: bool = True
+    agreement_samples: int = Field(D.AGREEMENT_SAMPLES, ge=1)
+    sweep: bool = False
+    sweep_scenes: list[str] = Field(default_factory=lambda: list(D.SWEEP_SCENES))
+    ghosting_skip: list[str] = Field(default_factory=lambda: list(D.GHOSTING_SKIP))
+    techniques: list[TechniqueEntry] = Field(default_factory=list)
+    protocols: ProtocolsEntry = Field(default_factory=ProtocolsEntry)
+    reference: dict[str, Any] = Field(default_factory=lambda: dict(D.REFERENCE))
+    keep_frames: Literal["report", "all"] = D.KEEP_FRAMES
+
+    @field_validator("resolution")
+    @classmethod
+    def _size(cls, v):
+        if isinstance(v, tuple) and not all(8 <= x <= 16384 for x in v):
+            raise ValueError(f"width and height must be in 8..16384, got {list(v)}")
+        return v
+
+
+def _where(loc) -> str:
+    out = ""
+    for part in loc:
+        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+    return out
+
+
+def load_study(path: str | Path) -> Profile:
+    """A study file as a Profile (what `study.engine.runner.Study` runs). Raises StudyFileError."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise StudyFileError(f"{path}: cannot read the study file ({exc.strerror})") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise StudyFileError(f"{path}: not valid TOML ({exc})") from None
+    try:
+        m = StudyModel.model_validate(data)
+    except ValidationError as exc:
+        lines = [f"{path}: field {_where(e['loc'])}: {e['msg'].removeprefix('Value error, ')} "
+                 f"(value: {e.get('input')!r})" for e in exc.errors()]
+        raise StudyFileError("\n".join(lines)) from None
+    base = path.resolve().parent
+
+    def fail(field: str, value, msg: str):
+        raise StudyFileError(f"{path}: field {field}: {msg} (value: {value!r})")
+
+    configs = []
+    for i, t in enumerate(m.techniques):
+        try:
+            c = t.config(base)
+            c.make()
+        except (ValueError, TypeError, KeyError) as exc:
+            fail(f"techniques[{i}]", t.spec or t.technique, str(exc))
+        configs.append(c)
+    labels = [c.label for c in configs]
+    if len(set(labels)) != len(labels):
+        fail("techniques", labels, "labels must be unique")
+    st = m.protocols.static
+    try:
+        static = Protocol("static", "static", history=st.history, checkpoints=tuple(sorted(set(st.checkpoints))))
+    except ValueError as exc:
+        fail("protocols.static", st.model_dump(), str(exc))
+    if st.thesis_history not in static.checkpoints:
+        fail("protocols.static.thesis_history", st.thesis_history, "must be one of the checkpoints")
+    names = [g.name for g in m.protocols.ghosting]
+    if len(set(names)) != len(names) or "static" in names:
+        fail("protocols.ghosting", names, "names must be unique and not 'static'")
+    ghosting = tuple(Protocol(g.name, "ghosting", frames=g.frames, warmup=g.warmup) for g in m.protocols.ghosting)
+    from references import ReferenceCache
+    allowed = set(inspect.signature(ReferenceCache.get).parameters) - {"self", "scene", "t", "width", "height",
+                                                                        "progress"}
+    for k, v in m.reference.items():
+        if k not in allowed:
+            fail(f"reference.{k}", v, f"unknown reference setting; known: {', '.join(sorted(allowed))}")
+    scenes = []
+    for i, s in enumerate(m.scenes):
+        if s.endswith((".toml", ".json")) and not Path(s).is_absolute():
+            s = str(base / s)
+        scenes.append(s)
+    out = m.out
+    if out is not None and not Path(out).is_absolute():
+        out = str(base / out)
+    return Profile(name=m.name, resolution=m.resolution, static=static, ghosting=ghosting,
+                   ref_settings=tuple(sorted(m.reference.items())), ghosting_techniques_skip=tuple(m.ghosting_skip),
+                   sweep_scenes=tuple(m.sweep_scenes), agreement_samples=m.agreement_samples,
+                   scenes=tuple(scenes), techniques=tuple(configs), out=out, agreement=m.agreement,
+                   sweep=m.sweep, thesis_history=st.thesis_history, keep_frames=m.keep_frames, source=str(path))
+
+
+def profile(name: str) -> Profile:
+    """A built-in profile (study/config/profiles/<name>.toml)."""
+    return load_study(PROFILE_DIR / f"{name}.toml")
+
+
+def builtin_profiles() -> list[str]:
+    return sorted(p.stem for p in PROFILE_DIR.glob("*.toml"))

@@ -1,0 +1,138 @@
+"""Technique configurations: what a study column is, and where its technique class comes from.
+
+A technique is named by a registry name (`taa_impl.TECHNIQUES`), by an entry point of the group
+`taa_study.techniques` in an installed package, or by a file of the user's own,
+`path/to/my_taa.py:ClassName`. All three give a `taa_impl.base.Technique` subclass driven exactly
+like the built-in ones; its module's source (wherever it lives) is part of its cache key.
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import importlib.util
+import json
+import sys
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+
+
+@dataclass(frozen=True)
+class TechniqueConfig:
+    """A technique as a study names it: a column label, a registry name and parameter overrides."""
+    label: str
+    name: str
+    overrides: tuple = ()          # ((field, value), ...) so the config is hashable
+
+    def make(self):
+        return resolve_technique(self.name)(**dict(self.overrides))
+
+    def is_default(self, name: str) -> bool:
+        """This is registry technique `name` with its default parameters (e.g. the thesis's TAA)."""
+        if self.name != name:
+            return False
+        import taa_impl
+        return self.make().params == taa_impl.make(name).params
+
+    def key_data(self) -> dict:
+        """What identifies this technique's output: registry name, effective parameters, and the
+        class whose code (and, transitively, the code it uses) produced it (see provenance)."""
+        tech = self.make()
+        params = dataclasses.asdict(tech.params) if dataclasses.is_dataclass(tech.params) else repr(tech.params)
+        return {"name": self.name, "params": params, "class": f"{type(tech).__module__}.{type(tech).__qualname__}"}
+
+    def code(self) -> type:
+        return type(self.make())
+
+    @classmethod
+    def parse(cls, text: str) -> "TechniqueConfig":
+        """'name' or 'label=name:field=value,field=value' (values parsed as JSON when they can be);
+        name may be 'path/to/file.py:ClassName'."""
+        head = text.split(":")[0]
+        label, _, rest = text.partition("=") if "=" in head and ".py" not in head.split("=")[0] else ("", "", text)
+        if ".py:" in rest:
+            path, _, tail = rest.partition(".py:")
+            cls_name, _, params = tail.partition(":")
+            name = f"{Path(path + '.py').resolve()}:{cls_name}"
+        else:
+            name, _, params = rest.partition(":")
+        overrides = []
+        for item in filter(None, params.split(",")):
+            k, eq, v = item.partition("=")
+            if not eq:
+                raise ValueError(f"technique {text!r}: override {item!r} is not field=value")
+            try:
+                val = json.loads(v)
+            except json.JSONDecodeError:
+                val = v
+            overrides.append((k, tuple(val) if isinstance(val, list) else val))
+        return cls(label or text, name, tuple(overrides))
+
+
+class TechniqueError(ValueError):
+    pass
+
+
+ENTRY_POINT_GROUP = "taa_study.techniques"
+
+
+@lru_cache(maxsize=None)
+def _file_module(path: str, mtime_ns: int):
+    # A stable module name per file, registered in sys.modules so that provenance can find its source.
+    name = "taa_user_" + hashlib.sha256(path.encode()).hexdigest()[:12]
+    spec = importlib.util.spec_from_file_location(name, path)
+    if spec is None or spec.loader is None:
+        raise TechniqueError(f"technique file {path}: not a Python file")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[name] = mod
+    try:
+        spec.loader.exec_module(mod)
+    except Exception as exc:
+        del sys.modules[name]
+        raise TechniqueError(f"technique file {path}: {type(exc).__name__}: {exc}") from None
+    return mod
+
+
+def resolve_technique(name: str):
+    """The factory of a technique name: registry, entry point, or 'file.py:Class'."""
+    import taa_impl
+    from taa_impl.base import Technique
+    if name in taa_impl.TECHNIQUES:
+        return taa_impl.TECHNIQUES[name]
+    if ".py:" in name:
+        path, _, cls_name = name.rpartition(":")
+        p = Path(path)
+        if not p.is_file():
+            raise TechniqueError(f"technique {name!r}: no file {path}")
+        mod = _file_module(str(p.resolve()), p.stat().st_mtime_ns)
+        obj = getattr(mod, cls_name, None)
+        where = f"technique file {path}"
+    else:
+        from importlib.metadata import entry_points
+        eps = [ep for ep in entry_points(group=ENTRY_POINT_GROUP) if ep.name == name]
+        if not eps:
+            raise TechniqueError(f"unknown technique {name!r}: not in the registry ({', '.join(sorted(taa_impl.TECHNIQUES))}), "
+                                 f"not an entry point of {ENTRY_POINT_GROUP!r}, not 'file.py:Class'")
+        try:
+            obj = eps[0].load()
+        except Exception as exc:
+            raise TechniqueError(f"technique entry point {name!r}: {type(exc).__name__}: {exc}") from None
+        cls_name, where = eps[0].value, f"entry point {name!r}"
+    if obj is None:
+        raise TechniqueError(f"{where} has no class {cls_name!r}")
+    if not (isinstance(obj, type) and issubclass(obj, Technique)):
+        raise TechniqueError(f"{where}: {cls_name} is not a taa_impl.base.Technique subclass")
+    return obj
+
+
+def available(configs) -> tuple[list, list]:
+    """(configs whose technique resolves, configs that do not)."""
+    ok, missing = [], []
+    for c in configs:
+        try:
+            resolve_technique(c.name)
+            ok.append(c)
+        except TechniqueError:
+            missing.append(c)
+    return ok, missing

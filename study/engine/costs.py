@@ -1,0 +1,96 @@
+"""What each technique costs per output frame, measured serially (never beside other work, so a
+parallel study does not time contention).
+
+A technique's frame costs the samples it shades plus its resolve (spec section 13): No AA, FXAA,
+SMAA and the TAAs shade one sample per pixel, SSAA N, sparse supersampling 1 plus the extra
+samples its mask asked for in the run (measured there). So per scene we time, on this machine:
+  raster_ms     one raster frame of the buffers the technique reads (visibility + reconstruction
+                + shading: the cost of one sample per pixel);
+  extra_ms      for sparse supersampling, its supersample call on the mask of a converged frame,
+                scaled to the mean extra samples the run recorded;
+  resolve_ms    the technique's own work per frame (process / process_samples), warm;
+  total_ms      raster_ms x subframes + extra_ms + resolve_ms.
+All are medians of repeated warm calls (the first calls compile kernels).
+"""
+from __future__ import annotations
+
+import platform
+import statistics
+import time
+
+import numpy as np
+
+from scenes.jitter import TAA_PERIOD, halton_offset, halton_offsets
+
+from study.engine.drive import FrameSource, drive
+from study.config.protocols import Step
+
+REPEATS = 5
+
+
+def median_ms(fn, repeats: int = REPEATS, warmup: int = 2) -> float:
+    """Median wall time of `fn` in ms over `repeats` calls after `warmup` (compiling) calls."""
+    times = []
+    for i in range(warmup + repeats):
+        t0 = time.perf_counter()
+        fn()
+        if i >= warmup:
+            times.append(time.perf_counter() - t0)
+    return 1000 * statistics.median(times)
+
+
+def machine() -> dict:
+    import backend
+    return {"host": platform.node(), "cpu": platform.processor() or platform.machine(),
+            "variant": backend.VARIANT}
+
+
+def measure(scene, width: int, height: int, configs: list, displays: dict, extra_spp: dict) -> dict:
+    """`extra_spp`: label -> mean extra samples per pixel its run shaded (sparse supersampling)."""
+    out = {}
+    for c in configs:
+        tech = c.make()
+        inp = tech.inputs
+        src = FrameSource(scene, width, height, inp.buffers)
+        try:
+            raster_ms = median_ms(lambda: src.raster.render(0, halton_offset(3, TAA_PERIOD), src.buffers, prev_t=0))
+            drive(tech, Step(0, 0, keep=True, reset=True, prev_t=0, frame=1), src, scene, width, height,
+                  displays.get(0))   # fills the history, as the kernels expect
+
+            if inp.sampling == "supersample":
+                subs = [src.frame(0, halton_offset(j, inp.subframes), 0) for j in range(inp.subframes)]
+                resolve_ms = median_ms(lambda: tech.process_samples(subs))
+            else:
+                jit = halton_offset(1, TAA_PERIOD) if inp.sampling == "sequence" else (0.0, 0.0)
+                frame = src.frame(0, jit, 0)
+                kw = {"far": scene.desc.camera.far}
+                if inp.display:
+                    kw["display"] = displays.get(0)
+                if inp.cameras:
+                    kw["cameras"] = (scene.camera(0, width, height), scene.camera(0, width, height))
+                if inp.extra_samples:
+                    # Its mask depends on its history, so each call makes it (the technique's work);
+                    # the extra samples' shading is extra_ms below.
+                    def step():
+                        mask = tech.invalid_mask(frame, far=kw["far"])
+                        tech.process(frame, jitter=jit, supersampled=frame["color"], mask=mask, **kw)
+                    resolve_ms = median_ms(step)
+                else:
+                    resolve_ms = median_ms(lambda: tech.process(frame, jitter=jit, **kw))
+            extra_ms = 0.0
+            if inp.extra_samples:
+                frac = float(extra_spp.get(c.label, 0.0))
+                n_pix = max(1, int(round(frac * width * height / max(inp.extra_samples, 1))))
+                rng = np.random.default_rng(0)
+                mask = np.zeros((height, width), bool)
+                mask.ravel()[rng.choice(width * height, min(n_pix, width * height), replace=False)] = True
+                offs = halton_offsets(inp.extra_samples)
+                extra_ms = median_ms(lambda: src.raster.supersample(0, mask, offs), repeats=3, warmup=1)
+            spp = inp.shaded_samples(float(extra_spp.get(c.label, 0.0)) / inp.extra_samples
+                                     if inp.extra_samples else 0.0)
+            out[c.label] = {"raster_ms": raster_ms, "resolve_ms": resolve_ms, "extra_ms": extra_ms,
+                            "samples_per_pixel": spp,
+                            "total_ms": raster_ms * inp.subframes + extra_ms + resolve_ms}
+        finally:
+            src.close()
+    return out

@@ -1,0 +1,146 @@
+"""What a planned study will compute, in work units, and what those units cost on this machine.
+
+`work(plan)` counts, per scene, what the plan's tasks will do (only tasks not already complete in
+the cache): references to render, distinct raster frames, technique steps (process calls), judged
+technique-frames (the metrics' unit) and agreement checks. `measure_units` times one of each unit
+per scene here (a reference of frame 0 through the cache, so a measured reference is not wasted;
+raster and resolve through study.engine.costs; the metrics of one technique-frame, split into its
+per-reference and per-frame parts as study.engine.judge works; writing, hashing and reading back one
+frame), and `estimate` multiplies. It is an extrapolation: a moving scene's references are assumed to cost what its
+frame 0 costs, and sparse supersampling's extra samples are taken at the share its mask asks for
+on a converged frame.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from ..config.protocols import frame_key, judged_steps, step_jitters
+
+
+@dataclass
+class SceneWork:
+    scene: str
+    spec: str
+    width: int
+    height: int
+    references: int = 0
+    raster_frames: int = 0                                 # distinct 1-spp raster frames
+    steps: dict = field(default_factory=dict)              # label -> process calls
+    subframes: dict = field(default_factory=dict)          # label -> supersample sub-frames rendered
+    judged: dict = field(default_factory=dict)             # label -> technique-frames judged
+    reference_reads: int = 0                               # references the metrics tasks read (once each)
+    agreement_frames: int = 0                               # raster frames the agreement check averages
+    configs: dict = field(default_factory=dict)            # label -> TechniqueConfig
+
+
+def _get(out: dict, spec: str, scene, w: int, h: int) -> SceneWork:
+    return out.setdefault(scene.name, SceneWork(scene.name, spec, w, h))
+
+
+def work(plan, cache=None) -> dict[str, SceneWork]:
+    """Per scene, the units the plan's tasks will compute (a reference `cache` holds is no work)."""
+    from study.engine.tasks import load_scene
+    out: dict[str, SceneWork] = {}
+    for task in plan.tasks.values():
+        if task.kind == "reference":
+            _, spec, t, w, h, settings = task.args
+            scene = load_scene(spec)
+            sw = _get(out, spec, scene, w, h)
+            if cache is None or not cache.has(scene, t, w, h, **settings):
+                sw.references += 1
+        elif task.kind == "agreement":
+            _, spec, w, h, samples = task.args[:5]
+            _get(out, spec, load_scene(spec), w, h).agreement_frames += samples + 1
+        elif task.kind == "run":
+            _, spec, w, h, protocol, configs = task.args[:6]
+            scene = load_scene(spec)
+            sw = _get(out, spec, scene, w, h)
+            schedule = protocol.schedule(scene)
+            frames = set()      # as study.engine.drive.FrameSource memoises them
+            for c in configs:
+                inp = c.make().inputs
+                sw.configs[c.label] = c
+                steps = schedule if inp.sampling == "sequence" else judged_steps(schedule, inp.sampling)
+                sw.steps[c.label] = sw.steps.get(c.label, 0) + len(steps)
+                if inp.sampling in ("sequence", "centre"):
+                    frames |= {frame_key(s.t, j, s.prev_t) for s in steps for j in step_jitters(s, inp.sampling)}
+                else:
+                    sw.subframes[c.label] = sw.subframes.get(c.label, 0) + len(steps) * inp.subframes
+            sw.raster_frames += len(frames)
+        elif task.kind == "metrics":
+            _, spec, w, h, items = task.args[:5]
+            sw = _get(out, spec, load_scene(spec), w, h)
+            for it in items:
+                sw.judged[it["label"]] = sw.judged.get(it["label"], 0) + len(it["frame_times"])
+            sw.reference_reads += len({t for it in items for t in it["frame_times"].values()})
+    return out
+
+
+def measure_units(sw: SceneWork, ref_settings: dict, cache, configs: list) -> dict:
+    """Seconds of one unit of each kind for this scene, measured here (see the module docstring)."""
+    import numpy as np
+
+    from display import DisplayTransform
+
+    from study.engine import costs as C
+    from study.metrics import suite as M
+    from study.engine.tasks import load_scene
+    scene = load_scene(sw.spec)
+    ref, cached = cache.get(scene, 0, sw.width, sw.height, **ref_settings)
+    disp = DisplayTransform.from_reference(ref.image)
+    measured = C.measure(scene, sw.width, sw.height, configs, {0: disp}, {})
+    # the metrics task's two parts (study.engine.judge): per reference (read, display transform, encode,
+    # quantise) and per technique-frame (encode, judge), here on a noisy copy of the reference
+    x = (ref.image * (1 + 0.05 * np.random.default_rng(0).standard_normal(ref.image.shape))).astype(np.float32)
+    got = {}
+
+    def per_reference():       # as study.engine.judge: from the cache (now a read)
+        r = cache.get(scene, 0, sw.width, sw.height, **ref_settings)[0]
+        d = DisplayTransform.from_reference(r.image)
+        got["disp"] = d.encode(r.image)
+        got["ref8"] = np.round(got["disp"] * 255).astype(np.uint8)
+
+    memo: dict = {}
+
+    def per_frame():   # after the first, FLIP's reference half comes from the memo, as in study.engine.judge
+        x_disp = disp.encode(x)
+        M.all_metrics(ref.image, got["disp"], got["ref8"], x, x_disp, np.round(x_disp * 255).astype(np.uint8),
+                      want_maps=False, memo=memo)
+    reference_read_s = C.median_ms(per_reference, repeats=3, warmup=1) / 1000
+    metrics_s = C.median_ms(per_frame, repeats=3, warmup=1) / 1000
+    # each judged frame is written by its run (and hashed) and read back by the metrics task
+    import tempfile
+    from pathlib import Path
+
+    from references.exr import read_exr, write_exr
+
+    from study.engine.store import sha256_file
+    with tempfile.TemporaryDirectory() as tmp:
+        frame = Path(tmp) / "frame.exr"
+
+        def frame_io():
+            write_exr(frame, {"RGB": ref.image})      # real content (noise compresses worse)
+            sha256_file(frame)
+            sha256_file(frame)
+            read_exr(frame)
+        frame_io_s = C.median_ms(frame_io, repeats=3, warmup=1) / 1000
+    return {"reference_s": ref.seconds, "reference_cached": cached, "metrics_s": metrics_s,
+            "reference_read_s": reference_read_s, "frame_io_s": frame_io_s,
+            "raster_s": min(m["raster_ms"] for m in measured.values()) / 1000,
+            "resolve_s": {label: m["resolve_ms"] / 1000 for label, m in measured.items()},
+            "subframe_s": {label: m["raster_ms"] / 1000 for label, m in measured.items()}}
+
+
+def estimate(sw: SceneWork, units: dict) -> dict:
+    """Seconds per kind of work for one scene: units x unit costs."""
+    res = units["resolve_s"]
+    out = {"reference": sw.references * units["reference_s"],
+           "raster": sw.raster_frames * units["raster_s"]
+           + sum(n * units["subframe_s"].get(label, units["raster_s"]) for label, n in sw.subframes.items()),
+           "resolve": sum(n * res.get(label, 0.0) for label, n in sw.steps.items()),
+           "metrics": sum(sw.judged.values()) * units["metrics_s"] + sw.reference_reads * units["reference_read_s"],
+           "frame_io": sum(sw.judged.values()) * units["frame_io_s"],
+           "agreement": sw.agreement_frames * units["raster_s"]}
+    out["total"] = sum(out.values())
+    return out
+

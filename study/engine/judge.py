@@ -1,0 +1,93 @@
+"""The metrics task: one test's runs judged against their references (spec section 9).
+
+One task per (scene, protocol) judges every technique of the test whose metrics are missing, frame
+by frame. Each reference is read, display-encoded and quantised once for all of them (at 1600x900
+reading and encoding a reference costs about as much as the metrics of one technique-frame), and
+FLIP's reference half (its exposures and filtered planes) is computed once per reference
+(study.metrics.flip's memo); a technique's frames are read one at a time. Each technique's metrics are
+still filed under their own key (its run, the references and the metric code), so a technique
+added to a study is judged alone, and a key another task already judges is left to it (study.engine.plan).
+"""
+from __future__ import annotations
+
+import contextlib
+from pathlib import Path
+
+from study.engine.tasks import TaskError, _deterministic, _setup, load_scene
+from study.metrics import suite as M
+
+
+@_deterministic
+def metrics_task(ctx, scene_spec: str, w: int, h: int, items: list, ref_settings: dict, deps=()) -> dict:
+    """items: one per technique, {run_folder, run_key, frame_times (frame id -> scene time),
+    maps_for (frame ids whose maps are kept), keep (frame ids of the run to keep once judged, or
+    None for all), key, folder}. Returns the records by metrics key."""
+    store = _setup(ctx)
+    scene = load_scene(scene_spec)
+    records = {}
+    with contextlib.ExitStack() as locks:
+        for key in sorted(it["key"] for it in items):     # one order everywhere: no deadlock
+            locks.enter_context(store.lock(key))
+        todo = []
+        for it in items:
+            rec = store.done(Path(it["folder"]), it["key"])
+            if rec is not None:
+                records[it["key"]] = {"data": rec["data"], "computed": False}
+            else:
+                todo.append(it)
+        if todo:
+            for it, data in _judge(store, ctx, scene, w, h, todo, ref_settings):
+                records[it["key"]] = {"data": data, "computed": True}
+    return {"kind": "metrics", "records": records}
+
+
+def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict):
+    import numpy as np
+
+    from display import DisplayTransform, quantise
+    from references import ReferenceCache
+
+    from study.engine.store import TamperError
+    runs = []
+    for it in items:
+        run = store.done(Path(it["run_folder"]), it["run_key"], whole=True)
+        if run is None:
+            raise TaskError(f"metrics of {it['run_folder']}: the run is not complete")
+        runs.append(run)
+    # Both protocols number a technique's frames in the order of their scene times, so judging by
+    # time, then frame, keeps each sequence in order (the temporal measure needs it).
+    by_time: dict = {}
+    for i, (it, run) in enumerate(zip(items, runs)):
+        times = {int(f): int(t) for f, t in it["frame_times"].items()}
+        for f in run["frames"]:
+            by_time.setdefault(times[f], []).append((i, f))
+    cache = ReferenceCache(Path(ctx.cache_root))
+    state = [{"per_frame": {}, "maps": {}, "temporal": M.TemporalInstability(), "references": {}} for _ in items]
+    for t in sorted(by_time):
+        ref = cache.get(scene, t, w, h, **ref_settings)[0]
+        disp = DisplayTransform.from_reference(ref.image)
+        ref_disp = disp.encode(ref.image)
+        ref8 = quantise(ref_disp)                               # disp.to_8bit, without encoding twice
+        memo: dict = {}                                         # FLIP's reference half, for every technique
+        for i, f in sorted(by_time[t]):
+            it, run, st = items[i], runs[i], state[i]
+            try:
+                ch = store.read_image(Path(it["run_folder"]), f"frame_{f:04d}.exr", run)
+            except TamperError as exc:
+                store.invalidate(Path(it["run_folder"]), str(exc))
+                raise TaskError(f"{exc}: the run was invalidated; run the study again to re-make it") from None
+            x = np.stack([ch[c] for c in "RGB"], -1)
+            x_lin, x_disp, x8 = disp.output(x, run["output_space"])
+            st["per_frame"][str(f)], maps = M.all_metrics(ref.image, ref_disp, ref8, x_lin, x_disp, x8,
+                                                          want_maps=f in it["maps_for"], memo=memo)
+            if f in it["maps_for"]:
+                st["maps"][f"maps_{f:04d}.exr"] = maps
+            st["temporal"].add(ref8, x8)
+            st["references"][str(t)] = ref.key
+    for it, st in zip(items, state):
+        temporal = st["temporal"].value() if st["temporal"].frames > 1 else None
+        data = {"per_frame": st["per_frame"], "temporal": temporal, "references": st["references"]}
+        rec = store.save_folder(Path(it["folder"]), it["key"], st["maps"], {"data": data})
+        if it.get("keep") is not None:   # judged: only the frames the report shows stay (study.engine.plan)
+            store.prune(Path(it["run_folder"]), it["run_key"], {f"frame_{f:04d}.exr" for f in it["keep"]})
+        yield it, rec["data"]

@@ -1,0 +1,230 @@
+"""Planning: what a study computes, as a graph of pure, content-keyed tasks.
+
+A study is a list of tests (scene, protocol, techniques). For each the planner keys
+  reference   (scene, frame)                    -- study.engine.reference_task
+  run         (scene, protocol, the techniques that share its raster frames) -- study.engine.run_task
+  metrics     (one technique's run; a test's are judged by one task) -- study.engine.judge
+  agreement   (scene)                           -- study.engine.agreement
+from the keys of their inputs (provenance.task_key), and leaves out every task whose artefact is
+already complete in the cache. Where the tasks run is study.engine.execute's business; the tables
+and figures made from their results are study.reporting's.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from provenance import task_key
+
+from study.config.protocols import Protocol, judged_steps
+from study.config.techniques import TechniqueConfig
+from study.engine import agreement as A
+from study.engine import judge as J
+from study.engine import reference_task as R
+from study.engine import run_task as RT
+from study.engine import tasks as T
+
+
+# The code each task kind's key names (with, for a run, the technique's class): provenance hashes
+# these modules and every own module they use.
+CODE = {
+    "reference": ("references.cache", "references.render", "display"),
+    "run": ("study.engine.drive", "study.engine.run_task"),
+    "metrics": ("study.engine.judge", "study.metrics.suite", "display"),
+    "agreement": ("study.engine.agreement",),
+}
+
+
+@dataclass
+class Task:
+    key: str
+    kind: str                     # reference | run | metrics | agreement
+    fn: object
+    args: tuple
+    deps: tuple = ()
+
+
+@dataclass
+class Test:
+    """One (scene, protocol, techniques) and the keys of everything it reads."""
+    scene: str                    # scene name
+    spec: str                     # what load_scene takes (built-in name or file path)
+    protocol: Protocol
+    configs: list
+    width: int
+    height: int
+    frame_times: dict = field(default_factory=dict)     # label -> {frame id: scene time}
+    run_keys: dict = field(default_factory=dict)        # label -> key
+    run_folders: dict = field(default_factory=dict)
+    metrics_keys: dict = field(default_factory=dict)
+    metrics_folders: dict = field(default_factory=dict)
+    reference_tasks: dict = field(default_factory=dict)  # scene time -> reference task key
+    maps_for: dict = field(default_factory=dict)        # label -> frame ids whose maps are kept
+    keep: dict = field(default_factory=dict)            # label -> frame ids kept once judged (None: all)
+
+
+@dataclass
+class Plan:
+    tasks: dict = field(default_factory=dict)           # key -> Task (only what must be computed)
+    tests: list = field(default_factory=list)
+    agreements: dict = field(default_factory=dict)      # scene name -> (key, path)
+    cached: dict = field(default_factory=dict)          # key -> result of a complete artefact
+
+    def counts(self) -> dict:
+        out: dict = {}
+        for t in self.tasks.values():
+            out[t.kind] = out.get(t.kind, 0) + 1
+        return out
+
+
+SHOWN_FRAMES = 24
+
+
+def shown_frames(frames: list, n: int = SHOWN_FRAMES) -> list:
+    """The frames of a sequence the report shows (its frame slider): at most n, evenly spaced."""
+    if len(frames) <= n:
+        return list(frames)
+    import numpy as np
+    idx = np.linspace(0, len(frames) - 1, n).round().astype(int)
+    return [frames[i] for i in sorted(set(idx))]
+
+
+def run_steps(schedule: list, inp) -> list:
+    """What a run's output depends on of its schedule, for its key. A technique with history sees
+    every step; one without sees only the instants it is judged at (and, through motion vectors or
+    cameras, the instant before), so a warm-up it never runs leaves its key alone."""
+    if inp.sampling == "sequence":
+        return [(s.t, s.k, s.keep, s.reset, s.prev_t, s.frame) for s in schedule]
+    moves = inp.cameras or bool({"motion", "prev_depth"} & set(inp.buffers))
+    return [(s.t, s.prev_t if moves else None, s.frame) for s in judged_steps(schedule, inp.sampling)]
+
+
+class Planner:
+    def __init__(self, ctx: T.Context, ref_settings: dict, agreement_samples: int | None):
+        from study.engine.store import Store
+        self.ctx, self.ref_settings, self.agreement_samples = ctx, dict(ref_settings), agreement_samples
+        self.store = Store(Path(ctx.cache_root))
+        self.plan = Plan()
+        self._run_task_of: dict = {}     # run key -> key of the run task that makes it
+        self._metrics_task_of: dict = {}  # metrics key -> key of the metrics task that judges it
+
+    # -- keys ----------------------------------------------------------------------------------------
+    def reference_key(self, scene, t: int, w: int, h: int) -> str:
+        return task_key("reference", {"scene": scene.content_hash, "t": t, "res": (w, h),
+                                      "camera": scene.camera(t, w, h).to_world.round(12).tolist(),
+                                      "settings": self.ref_settings},
+                        code=CODE["reference"])
+
+    def _reference(self, spec: str, scene, t: int, w: int, h: int) -> str:
+        key = self.reference_key(scene, t, w, h)
+        if key not in self.plan.tasks:
+            self.plan.tasks[key] = Task(key, "reference", R.reference_task,
+                                        (self.ctx, spec, t, w, h, self.ref_settings))
+        return key
+
+    # -- tests -----------------------------------------------------------------------------------------
+    def add_test(self, spec: str, scene, protocol: Protocol, configs: list[TechniqueConfig],
+                 w: int, h: int, maps="last", keep="all") -> Test:
+        """Plan one test. `maps`: which judged frames keep their SSIM/FLIP maps: 'last' (the last
+        judged frame of each run), 'none', or a tuple of history lengths (the static views; a
+        technique without history keeps its one frame). `keep`: which of a run's frames stay in
+        the cache once judged: 'all', 'maps' (those with maps), 'shown' (shown_frames) or 'none'.
+        At 1600x900 a frame is ~9 MB and the full profile judges ~9000: the rest are dropped, and
+        a run is re-made if its metrics are ever needed again."""
+        if keep not in ("all", "maps", "shown", "none"):
+            raise ValueError(f"keep must be 'all', 'maps', 'shown' or 'none', not {keep!r}")
+        schedule = protocol.schedule(scene)
+        test = Test(scene.name, spec, protocol, list(configs), w, h)
+        kept_t = sorted({s.t for s in schedule if s.keep})
+        ref_keys = {t: self.reference_key(scene, t, w, h) for t in kept_t}
+        missing = []
+        for c in configs:
+            tech = c.make()
+            inp = tech.inputs
+            judged = judged_steps(schedule, inp.sampling)
+            test.frame_times[c.label] = {s.frame: s.t for s in judged}
+            # Display-space techniques see a display transform built from the reference.
+            inputs = [ref_keys[t] for t in kept_t] if inp.display else []
+            key = task_key("run", {"scene": scene.content_hash, "res": (w, h), "schedule": run_steps(schedule, inp),
+                                   "technique": c.key_data()}, inputs, code=[type(tech), *CODE["run"]])
+            folder = self.store.folder(protocol.kind, scene.name, key)
+            test.run_keys[c.label], test.run_folders[c.label] = key, str(folder)
+            frames = sorted(test.frame_times[c.label])
+            if maps == "none":
+                mf = []
+            elif isinstance(maps, tuple):
+                mf = sorted({max(f for f in frames if f <= v) for v in maps if any(f <= v for f in frames)}
+                            | {frames[-1]})
+            else:
+                mf = [frames[-1]]
+            test.maps_for[c.label] = mf
+            test.keep[c.label] = {"all": None, "maps": mf, "shown": shown_frames(frames), "none": []}[keep]
+            mkey = task_key("metrics", {"frames": test.frame_times[c.label], "maps": mf},
+                            [key] + [ref_keys[t] for t in sorted(set(test.frame_times[c.label].values()))],
+                            code=CODE["metrics"])
+            mfolder = self.store.root / "metrics" / scene.name / mkey
+            test.metrics_keys[c.label], test.metrics_folders[c.label] = mkey, str(mfolder)
+            mrec = self.store.done(mfolder, mkey, verify_files=bool(mf))
+            if mrec is not None and self._run_intact(folder, key, verify=bool(mf)):
+                self.plan.cached[mkey] = {"kind": "metrics", "key": mkey, "data": mrec["data"], "computed": False}
+                continue
+            missing.append(c)
+        test.reference_tasks = ref_keys
+        if missing:
+            # The metrics task reads every frame of its run: a run with a damaged file is re-made.
+            need_run = [c for c in missing if self.store.done(Path(test.run_folders[c.label]), test.run_keys[c.label],
+                                                              verify_files=True, whole=True) is None]
+            # a run another test already plans (a technique without history judged at the same
+            # instants, e.g. under the cold and the warm ghosting protocol) is made once
+            shared = {c.label: self._run_task_of[test.run_keys[c.label]] for c in need_run
+                      if test.run_keys[c.label] in self._run_task_of}
+            need_run = [c for c in need_run if c.label not in shared]
+            run_dep = ()
+            if need_run:
+                rdeps = tuple(self._reference(spec, scene, t, w, h) for t in kept_t) \
+                    if any(c.make().inputs.display for c in need_run) else ()
+                rkey = task_key("runs", sorted(test.run_keys[c.label] for c in need_run))
+                self.plan.tasks[rkey] = Task(rkey, "run", RT.run_task, (
+                    self.ctx, spec, w, h, protocol, need_run, {c.label: test.run_keys[c.label] for c in need_run},
+                    {c.label: test.run_folders[c.label] for c in need_run}, self.ref_settings), rdeps)
+                run_dep = (rkey,)
+                self._run_task_of.update({test.run_keys[c.label]: rkey for c in need_run})
+            # one metrics task judges the test's missing techniques together (study.engine.judge); a
+            # metrics key another test's task already judges (a shared run's) is left to it
+            mine = [c for c in missing if test.metrics_keys[c.label] not in self._metrics_task_of]
+            if mine:
+                ts = sorted({t for c in mine for t in test.frame_times[c.label].values()})
+                made_by = {shared.get(c.label) or (run_dep[0] if c in need_run else None) for c in mine} - {None}
+                deps = tuple(sorted(made_by)) + tuple(self._reference(spec, scene, t, w, h) for t in ts)
+                items = [{"label": c.label, "run_folder": test.run_folders[c.label], "run_key": test.run_keys[c.label],
+                          "frame_times": test.frame_times[c.label], "maps_for": test.maps_for[c.label],
+                          "keep": test.keep[c.label],
+                          "key": test.metrics_keys[c.label], "folder": test.metrics_folders[c.label]} for c in mine]
+                gkey = task_key("metrics-of", sorted(it["key"] for it in items))
+                self.plan.tasks[gkey] = Task(gkey, "metrics", J.metrics_task,
+                                             (self.ctx, spec, w, h, items, self.ref_settings), deps)
+                self._metrics_task_of.update({it["key"]: gkey for it in items})
+        self.plan.tests.append(test)
+        return test
+
+    def _run_intact(self, folder: Path, key: str, verify: bool) -> bool:
+        """A run whose frames the report reads must be intact too (else it is re-made)."""
+        if not verify:
+            return True
+        return self.store.done(folder, key, verify_files=True) is not None
+
+    def add_agreement(self, spec: str, scene, w: int, h: int) -> None:
+        if not self.agreement_samples:
+            return
+        ref = self.reference_key(scene, 0, w, h)
+        key = task_key("agreement", {"scene": scene.content_hash, "res": (w, h), "samples": self.agreement_samples},
+                       [ref], code=CODE["agreement"])
+        path = self.store.record_path("agreement", scene.name, key)
+        self.plan.agreements[scene.name] = key
+        data = self.store.load_record(path, key)
+        if data is not None:
+            self.plan.cached[key] = {"kind": "agreement", "key": key, "data": data, "computed": False}
+            return
+        self.plan.tasks[key] = Task(key, "agreement", A.agreement_task, (
+            self.ctx, spec, w, h, self.agreement_samples, self.ref_settings, key, str(path)),
+            (self._reference(spec, scene, 0, w, h),))

@@ -1,0 +1,90 @@
+"""A study's results as the reporting reads them: per test its metrics, costs and artefact keys
+(TestResult), the whole study's (StudyResults), and the pixels behind them (Artefacts: a run's
+judged frames and a metrics record's maps, each verified against its done record as it is read).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from study.config.defaults import THESIS_HISTORY
+
+from study.engine.plan import SHOWN_FRAMES, shown_frames  # noqa: F401  (what the report's sliders show)
+
+
+@dataclass
+class TestResult:
+    scene: str
+    test: str                                  # protocol label
+    frames: list[int]
+    per_frame: dict[str, dict[int, dict]]      # label -> frame id -> metrics
+    ms: dict[str, float]                       # label -> total cost per output frame (study.engine.costs)
+    temporal: dict[str, float] = field(default_factory=dict)
+    recomputed: list[str] = field(default_factory=list)
+    artefacts: dict[str, dict] = field(default_factory=dict)   # label -> folder, keys, output space, frame file
+    stats: dict[str, dict] = field(default_factory=dict)       # label -> frame id -> counters (sparse SS)
+    reference_keys: dict[int, str] = field(default_factory=dict)
+    costs: dict[str, dict] = field(default_factory=dict)       # label -> study.engine.costs figures
+    width: int = 0
+    height: int = 0
+    kind: str = "static"
+    checkpoints: dict[str, dict[int, dict]] = field(default_factory=dict)   # static: label -> n -> metrics
+
+
+@dataclass
+class StudyResults:
+    statics: list = field(default_factory=list)        # one TestResult per scene (all checkpoints)
+    views: dict = field(default_factory=dict)          # static view label -> [TestResult]
+    ghosts: dict = field(default_factory=dict)         # ghosting protocol name -> [TestResult]
+    sweeps: list = field(default_factory=list)
+    agreements: dict = field(default_factory=dict)     # scene -> agreement dict
+    references: dict = field(default_factory=dict)     # scene -> Reference (frame 0)
+    stats: dict = field(default_factory=dict)
+    artefacts: "Artefacts | None" = None                # the pixels behind the figures
+    reference: object = None                           # (scene name, t, w, h) -> Reference
+    thesis_history: int = THESIS_HISTORY
+
+
+
+class Artefacts:
+    """Read-only access to the frames and maps of a study's artefacts, verified on read."""
+
+    def __init__(self, cache_root):
+        from study.engine.store import Store
+        self.store = Store(Path(cache_root))
+
+    def frame(self, a: dict, f: int) -> np.ndarray:
+        """Frame f of the run `a` (a TestResult.artefacts entry), RGB."""
+        folder = Path(a["folder"])
+        rec = self.store.done(folder, a["run_key"])
+        if rec is None:
+            raise RuntimeError(f"run {folder} is not complete")
+        ch = self.store.read_image(folder, f"frame_{f:04d}.exr", rec)
+        return np.stack([ch[c] for c in "RGB"], -1)
+
+    def maps(self, a: dict, f: int) -> dict:
+        """The SSIM/FLIP maps of frame f of the metrics record of `a`."""
+        folder = Path(a["metrics_folder"])
+        rec = self.store.done(folder, a["metrics_key"])
+        if rec is None:
+            raise RuntimeError(f"metrics {folder} are not complete")
+        return self.store.read_image(folder, f"maps_{f:04d}.exr", rec)
+
+
+def view(full: TestResult, label: str, n: int) -> TestResult:
+    """The static test as one protocol reads it: history length n (the checkpoint n for techniques
+    with history, the single judged frame for those without)."""
+    v = TestResult(full.scene, label, [n], {}, dict(full.ms), temporal=dict(full.temporal),
+                   stats={}, reference_keys=full.reference_keys, costs=full.costs, width=full.width,
+                   height=full.height, kind="static")
+    for l, per in full.per_frame.items():
+        f = n if n in per else max(per)
+        v.per_frame[l] = {n: per[f]}
+        v.artefacts[l] = {**full.artefacts[l], "frame": f}
+        if l in full.stats and f in full.stats[l]:
+            v.stats[l] = {n: full.stats[l][f]}
+    return v
+
+

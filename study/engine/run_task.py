@@ -1,0 +1,67 @@
+"""The run task: techniques that share raster frames run over one protocol on one scene, each
+judged frame filed in the cache as it is made."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from provenance import task_key
+from study.engine.drive import run_schedule
+from study.engine.tasks import Context, TaskError, _deterministic, _setup, load_scene
+
+
+@_deterministic
+def run_task(ctx: Context, scene_spec: str, w: int, h: int, protocol, configs: list, keys: dict,
+             folders: dict, ref_settings: dict, deps=()) -> dict:
+    """Run the techniques `configs` (sharing raster frames) over `protocol` on one scene; file each
+    technique's judged frames under its key. Returns label -> done record summary."""
+    from display import DisplayTransform
+
+    store = _setup(ctx)
+    scene = load_scene(scene_spec)
+    out, todo = {}, []
+    lock = task_key("run-lock", sorted(keys.values()))
+    with store.lock(lock):
+        for c in configs:
+            rec = store.done(Path(folders[c.label]), keys[c.label], whole=True)
+            if rec is not None:
+                out[c.label] = _run_summary(rec, computed=False)
+            else:
+                todo.append(c)
+        if todo:
+            schedule = protocol.schedule(scene)
+            displays = {}
+            if any(c.make().inputs.display for c in todo):
+                from references import ReferenceCache
+                cache = ReferenceCache(Path(ctx.cache_root))
+                for t in sorted({s.t for s in schedule if s.keep}):   # one reference held at a time
+                    displays[t] = DisplayTransform.from_reference(cache.get(scene, t, w, h, **ref_settings)[0].image)
+            writers = {c.label: store.writer(Path(folders[c.label])) for c in todo}
+            frames: dict = {c.label: [] for c in todo}
+
+            def emit(label, f, img):      # each judged frame goes to the cache as it is made
+                if not _finite(img):
+                    raise TaskError(f"scene {scene.name!r}, {protocol.name}: technique {label!r} produced "
+                                    f"NaN/Inf in frame(s) {[f]}")
+                writers[label].add(f"frame_{f:04d}.exr", img)
+                frames[label].append(f)
+            fresh = run_schedule(scene, w, h, schedule, todo, displays,
+                                 desc=f"{scene.name}: {protocol.name} ({', '.join(c.label for c in todo)})",
+                                 progress=False, emit=emit)
+            for c in todo:
+                r = fresh[c.label]
+                meta = {"label": c.label, "technique": c.name, "overrides": [list(o) for o in c.overrides],
+                        "output_space": r["output_space"], "nonfinite_inputs": r["nonfinite"],
+                        "frames": sorted(frames[c.label]), "stats": {str(f): v for f, v in r["stats"].items()}}
+                rec = writers[c.label].seal(keys[c.label], meta)
+                out[c.label] = _run_summary(rec, computed=True)
+    return {"kind": "run", "runs": out}
+
+
+def _finite(img) -> bool:
+    import numpy as np
+    return bool(np.all(np.isfinite(img)))
+
+
+def _run_summary(rec: dict, computed: bool) -> dict:
+    return {"key": rec["key"], "frames": rec["frames"], "output_space": rec["output_space"],
+            "stats": rec.get("stats", {}), "computed": computed}

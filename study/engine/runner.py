@@ -1,0 +1,196 @@
+"""A study: plan its tasks (study.engine.plan), execute them (study.engine.execute), measure costs serially
+(study.engine.costs), and gather the results the report turns into tables and figures.
+
+Every artefact is keyed by what produced it (provenance.task_key): a run by the scene's content,
+the protocol's schedule, the resolution, the technique's parameters and code (and the references
+when the technique works on display images); metrics by the run and reference keys and the metric
+code. A second study with nothing changed plans no task and only re-reads small records.
+"""
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+from provenance import task_key
+from references import ReferenceCache
+from scenes import ResolvedScene
+
+from study.config.profile import Profile, get_profile
+from study.config.techniques import TechniqueConfig
+from study.engine.execute import Executor, execute
+from study.engine.plan import Planner
+from study.engine.results import Artefacts, StudyResults, TestResult, view
+from study.engine.tasks import Context, _deterministic, load_scene
+
+
+def is_animated(scene: ResolvedScene) -> bool:
+    f = set(scene.desc.features())
+    return scene.desc.frames > 1 and bool(f & {"moving_object", "moving_camera", "camera_cut"})
+
+
+class Study:
+    def __init__(self, profile: str | Profile = "quick", cache_root: Path | None = None, progress: bool = True,
+                 log=None, executor: Executor = Executor()):
+        self.profile: Profile = get_profile(profile)
+        self.cache = ReferenceCache(cache_root)
+        self.progress = progress
+        self.log = log or (lambda m: print(m, file=sys.stderr))
+        self.executor = executor
+        self.ctx = Context(str(self.cache.root), executor.threads)
+        self.ref_settings = dict(self.profile.ref_settings)
+
+    def resolution(self, scene: ResolvedScene) -> tuple[int, int]:
+        r = self.profile.resolution
+        return tuple(r) if isinstance(r, (tuple, list)) else scene.resolution(r)
+
+    def reference(self, scene: ResolvedScene, t: int, w: int, h: int):
+        return self.cache.get(scene, t, w, h, **self.ref_settings)[0]
+
+    def _reference_of(self, scenes):
+        """scene name, t, w, h -> its Reference (the reporting's way to a reference's pixels)."""
+        by_name = {scene.name: scene for _, scene in scenes}
+        return lambda name, t, w, h: self.reference(by_name[name], t, w, h)
+
+    # -- the whole study ----------------------------------------------------------------------------
+    def plan(self, specs: list[str], configs: list[TechniqueConfig], agreement: bool = True,
+             sweep: tuple = (), ghosting: bool = True):
+        """The study's tests and the tasks it must compute: (plan, scenes, statics, ghosts, sweeps)."""
+        planner = Planner(self.ctx, self.ref_settings, self.profile.agreement_samples if agreement else None)
+        scenes = [(spec, load_scene(spec)) for spec in specs]
+        statics, ghosts, sweeps = [], [], []
+        for spec, scene in scenes:
+            w, h = self.resolution(scene)
+            # a run keeps, once judged, the frames the report reads (static views, ghosting sliders)
+            every = self.profile.keep_frames == "all"
+            statics.append(planner.add_test(spec, scene, self.profile.static, configs, w, h,
+                                             maps=tuple(self.profile.static_views.values()),
+                                             keep="all" if every else "maps"))
+            if ghosting and is_animated(scene):
+                gconf = [c for c in configs if c.name not in self.profile.ghosting_techniques_skip]
+                for p in self.profile.ghosting:
+                    ghosts.append(planner.add_test(spec, scene, p, gconf, w, h, maps="none",
+                                                   keep="all" if every else "shown"))
+            if sweep and scene.name in self.profile.sweep_scenes:
+                proto = self.profile.ghosting[0] if is_animated(scene) else self.profile.static
+                sweeps.append(planner.add_test(spec, scene, proto, list(sweep), w, h, maps="none",
+                                               keep="all" if every else "none"))
+            planner.add_agreement(spec, scene, w, h)
+        return planner.plan, scenes, statics, ghosts, sweeps
+
+    def run(self, specs: list[str], configs: list[TechniqueConfig], agreement: bool = True,
+            sweep: tuple = (), ghosting: bool = True) -> StudyResults:
+        plan, scenes, statics, ghosts, sweeps = self.plan(specs, configs, agreement, sweep, ghosting)
+        counts = plan.counts()
+        if plan.tasks:
+            self.log(f"study: {len(plan.tasks)} tasks to compute ({', '.join(f'{k} {n}' for k, n in sorted(counts.items()))})"
+                     f", {len(plan.cached)} complete; executor: {self.executor.describe()}")
+        results = execute(plan, self.executor, self.progress, self.log)
+        for key in [k for k, v in results.items() if "records" in v]:   # a metrics task: its records by key
+            for mkey, rec in results.pop(key)["records"].items():
+                results[mkey] = {"kind": "metrics", "key": mkey, **rec}
+
+        out = StudyResults(artefacts=Artefacts(self.cache.root), reference=self._reference_of(scenes),
+                           thesis_history=self.profile.thesis_history)
+        out.stats = {"runs_computed": sum(len([r for r in v["runs"].values() if r["computed"]])
+                                          for v in results.values() if v["kind"] == "run"),
+                     "metrics_computed": sum(1 for v in results.values() if v["kind"] == "metrics" and v["computed"]),
+                     "references_rendered": sum(1 for v in results.values() if v["kind"] == "reference" and v["rendered"]),
+                     "tasks": counts}
+        out.stats["runs_cached"] = sum(len(t.configs) for t in statics + ghosts + sweeps) - out.stats["runs_computed"]
+        costs = self._costs(scenes, statics, results)
+        for spec, scene in scenes:
+            w, h = self.resolution(scene)
+            out.references[scene.name] = self.reference(scene, 0, w, h)
+            if scene.name in plan.agreements:
+                out.agreements[scene.name] = results[plan.agreements[scene.name]]["data"]
+        for t in statics:
+            full = self._result(t, results, costs)
+            out.statics.append(full)
+            for label, n in self.profile.static_views.items():
+                out.views.setdefault(label, []).append(view(full, label, n))
+        for t in ghosts:
+            out.ghosts.setdefault(t.protocol.name, []).append(self._result(t, results, costs))
+        out.sweeps = [self._result(t, results, costs) for t in sweeps]
+        return out
+
+    def _records(self, test):
+        from study.engine.store import Store
+        store = Store(self.cache.root)
+        return {c.label: store.done(Path(test.run_folders[c.label]), test.run_keys[c.label]) for c in test.configs}
+
+    def _result(self, test, results: dict, costs: dict) -> TestResult:
+        recs = self._records(test)
+        res = TestResult(test.scene, test.protocol.name, [], {}, {}, width=test.width, height=test.height,
+                         kind=test.protocol.kind,
+                         reference_keys={t: k for t, k in test.reference_tasks.items()})
+        frames = set()
+        for c in test.configs:
+            m = results[test.metrics_keys[c.label]]
+            if m["computed"]:
+                res.recomputed.append(c.label)
+            per = {int(f): v for f, v in m["data"]["per_frame"].items()}
+            res.per_frame[c.label] = per
+            frames |= set(per)
+            t = m["data"].get("temporal")
+            res.temporal[c.label] = math.nan if t is None else t
+            rec = recs[c.label] or {}
+            if rec.get("stats"):
+                res.stats[c.label] = {int(f): v for f, v in rec["stats"].items()}
+            cost = costs.get((test.scene, c.label), {})
+            res.costs[c.label] = cost
+            res.ms[c.label] = cost.get("total_ms", math.nan)
+            res.artefacts[c.label] = {"folder": test.run_folders[c.label], "run_key": test.run_keys[c.label],
+                                      "metrics_key": test.metrics_keys[c.label],
+                                      "metrics_folder": test.metrics_folders[c.label],
+                                      "output_space": (rec or {}).get("output_space", "linear"),
+                                      "technique": c.name, "overrides": list(c.overrides),
+                                      "maps_for": test.maps_for[c.label]}
+        res.frames = sorted(frames)
+        if test.protocol.kind == "static":
+            res.checkpoints = res.per_frame
+        return res
+
+    # -- costs: serial, after everything else ---------------------------------------------------------
+    def _costs(self, scenes, statics, results) -> dict:
+        from display import DisplayTransform
+
+        from study.engine import costs as C
+        from study.engine.store import Store
+        store = Store(self.cache.root)
+        mach = C.machine()
+        out = {}
+        by_name = {scene.name: (spec, scene) for spec, scene in scenes}
+        todo = []
+        for test in statics:
+            spec, scene = by_name[test.scene]
+            recs = self._records(test)
+            for c in test.configs:
+                extra = 0.0
+                stats = (recs[c.label] or {}).get("stats") or {}
+                if stats:
+                    extra = sum(v["samples_shaded"] for v in stats.values()) / len(stats) / (test.width * test.height)
+                key = task_key("cost", {"scene": scene.content_hash, "res": (test.width, test.height),
+                                        "technique": c.key_data(), "machine": mach, "extra_spp": round(extra, 3)},
+                               code=[c.code(), "study.engine.costs"])
+                path = store.record_path("costs", test.scene, key)
+                rec = store.load_record(path, key)
+                if rec is None:
+                    todo.append((test, scene, c, extra, key, path))
+                else:
+                    out[(test.scene, c.label)] = rec
+        if todo:
+            from tqdm import tqdm
+            refs = {}
+            for test, scene, c, extra, key, path in tqdm(todo, desc="costs (serial)", unit="technique",
+                                                          disable=not self.progress, file=sys.stderr):
+                if test.scene not in refs:
+                    refs[test.scene] = DisplayTransform.from_reference(
+                        self.reference(scene, 0, test.width, test.height).image)
+                got = _deterministic(C.measure)(scene, test.width, test.height, [c], {0: refs[test.scene]},
+                                                {c.label: extra})[c.label]
+                out[(test.scene, c.label)] = store.save_record(path, key, got)
+        return out
+
+
+__all__ = ["Study", "StudyResults", "TestResult", "is_animated"]

@@ -1,0 +1,221 @@
+"""Make-style, tamper-evident artefact store.
+
+Every artefact lives in a folder named by its content key and is complete only once its
+`done.json` (written last, atomically) names that key. The done record lists the SHA-256 of every
+file the artefact holds, and carries a hash of its own content; a read checks both, so an edited
+value, a file overwritten with garbage or another artefact's file copied in is reported (which
+file, expected and found hash) and the artefact is re-made. JSON records (metrics, agreement,
+timings) carry the same self-hash.
+
+Writes go to a temporary name and are renamed, with the permissions the user's umask gives.
+`lock(key)` serialises work on one key across processes and machines sharing the cache (an
+exclusive-create lock file, kept fresh by a heartbeat; a lock whose heartbeat stopped is stale).
+"""
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import os
+import socket
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+from provenance.files import _umask, sha256_file, write_text_atomic
+from references.exr import read_exr, write_exr
+
+
+def _json_default(o):
+    if isinstance(o, (np.floating, np.integer)):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, Path):
+        return str(o)
+    raise TypeError(f"not JSON-serialisable: {type(o).__name__}")
+
+
+def _canonical(data: dict) -> bytes:
+    body = {k: v for k, v in data.items() if k != "sha256"}
+    return json.dumps(body, sort_keys=True, default=_json_default, allow_nan=True).encode()
+
+
+def seal(data: dict) -> dict:
+    """`data` with a hash of its own content, so an edit that keeps the key is detected."""
+    return {**data, "sha256": hashlib.sha256(_canonical(data)).hexdigest()}
+
+
+class TamperError(ValueError):
+    pass
+
+
+def unseal(data: dict, where: Path) -> dict:
+    found = hashlib.sha256(_canonical(data)).hexdigest()
+    if data.get("sha256") != found:
+        raise TamperError(f"{where}: content hash {found[:16]} does not match the recorded "
+                          f"{str(data.get('sha256'))[:16]}")
+    return data
+
+
+class FolderWriter:
+    """A folder being made: it has no done record until `seal`, so a crash leaves it incomplete."""
+
+    def __init__(self, folder: Path):
+        self.folder = Path(folder)
+        self.folder.mkdir(parents=True, exist_ok=True)
+        (self.folder / "done.json").unlink(missing_ok=True)
+        self.hashes: dict[str, str] = {}
+
+    def add(self, name: str, data) -> None:
+        write_exr(self.folder / name, data if isinstance(data, dict) else {"RGB": data})
+        self.hashes[name] = sha256_file(self.folder / name)
+
+    def seal(self, key: str, meta: dict) -> dict:
+        return _write_done(self.folder, seal({**meta, "key": key, "files": dict(self.hashes)}))
+
+
+def _write_done(folder: Path, record: dict) -> dict:
+    write_text_atomic(folder / "done.json", json.dumps(record, indent=1, default=_json_default))
+    return record
+
+
+class Store:
+    """Artefacts under `root`: folders of files with a sealed done record, and sealed JSON records."""
+
+    def __init__(self, root: Path, log=None):
+        self.root = Path(root)
+        self.log = log or (lambda msg: print(msg, file=sys.stderr))
+
+    # -- folders of files ----------------------------------------------------------------------
+    def folder(self, kind: str, scene: str, key: str) -> Path:
+        return self.root / "runs" / kind / scene / key
+
+    def save_folder(self, folder: Path, key: str, files: dict[str, np.ndarray | dict], meta: dict) -> dict:
+        """Write EXR files (name -> image or channel dict) and then the done record listing their hashes."""
+        w = self.writer(folder)
+        for name, data in files.items():
+            w.add(name, data)
+        return w.seal(key, meta)
+
+    def writer(self, folder: Path) -> "FolderWriter":
+        """Files one at a time, then the done record (for artefacts too large to hold at once)."""
+        return FolderWriter(folder)
+
+    def done(self, folder: Path, key: str, verify_files: bool = False, whole: bool = False) -> dict | None:
+        """The done record if the folder is complete under `key` (and, if asked, every file intact).
+        `whole`: only if no file was pruned (the caller needs every frame, not the kept ones)."""
+        path = folder / "done.json"
+        if not path.exists():
+            return None
+        try:
+            record = unseal(json.loads(path.read_text()), path)
+            if record.get("key") != key:
+                return None
+            if verify_files:            # the kept files too: a tampered one is reported either way
+                for name in record["files"]:
+                    self.verify(folder / name, record)
+            return None if whole and record.get("pruned") else record
+        except (TamperError, ValueError, KeyError, OSError) as exc:
+            self.log(f"store: {exc}; re-making {folder}")
+            path.unlink(missing_ok=True)
+            return None
+
+    def prune(self, folder: Path, key: str, keep: set) -> int:
+        """Drop the files of a done folder not in `keep` (names): the record first lists only the
+        kept ones and names the dropped under 'pruned', then they are deleted. Returns the count."""
+        record = self.done(folder, key)
+        if record is None:
+            return 0
+        drop = sorted(n for n in record["files"] if n not in keep)
+        if not drop:
+            return 0
+        _write_done(folder, seal({**record, "files": {n: h for n, h in record["files"].items() if n in keep},
+                                  "pruned": sorted(set(record.get("pruned", [])) | set(drop))}))
+        for n in drop:
+            (folder / n).unlink(missing_ok=True)
+        return len(drop)
+
+    def verify(self, path: Path, record: dict) -> None:
+        expected = record["files"].get(path.name)
+        if expected is None and path.name in record.get("pruned", []):
+            raise TamperError(f"{path}: dropped after it was judged (only the frames the report shows are kept)")
+        if expected is None:
+            raise TamperError(f"{path}: not listed in its done record")
+        found = sha256_file(path) if path.exists() else "missing"
+        if found != expected:
+            raise TamperError(f"{path}: expected SHA-256 {expected[:16]}, found {found[:16]}")
+
+    def read_image(self, folder: Path, name: str, record: dict) -> dict:
+        """Channels of one EXR of a done folder, after checking its hash."""
+        self.verify(folder / name, record)
+        _, ch = read_exr(folder / name)
+        return ch
+
+    def invalidate(self, folder: Path, reason: str) -> None:
+        self.log(f"store: {reason}; re-making {folder}")
+        (folder / "done.json").unlink(missing_ok=True)
+
+    # -- sealed JSON records ---------------------------------------------------------------------
+    def record_path(self, kind: str, scene: str, key: str) -> Path:
+        return self.root / kind / scene / f"{key}.json"
+
+    def load_record(self, path: Path, key: str) -> dict | None:
+        if not path.exists():
+            return None
+        try:
+            data = unseal(json.loads(path.read_text()), path)
+            return data if data.get("key") == key else None
+        except (TamperError, ValueError) as exc:
+            self.log(f"store: {exc}; re-making it")
+            path.unlink(missing_ok=True)
+            return None
+
+    def save_record(self, path: Path, key: str, data: dict) -> dict:
+        record = seal({**data, "key": key})
+        write_text_atomic(path, json.dumps(record, indent=1, default=_json_default))
+        return record
+
+    # -- one writer per key ------------------------------------------------------------------------
+    @contextlib.contextmanager
+    def lock(self, key: str, stale_s: float = 60.0, poll_s: float = 0.2):
+        """Exclusive work on `key` among every process sharing this cache (also over NFS: exclusive
+        create is atomic there). The holder refreshes the file's time; a waiter breaks a lock
+        whose time stopped for `stale_s` (its holder died)."""
+        path = self.root / "locks" / f"{key}.lock"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        me = f"{socket.gethostname()} {os.getpid()} {threading.get_ident()}"
+        while True:
+            try:
+                fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o666 & ~_umask())
+                os.write(fd, me.encode())
+                os.close(fd)
+                break
+            except FileExistsError:
+                try:
+                    if time.time() - path.stat().st_mtime > stale_s:
+                        self.log(f"store: breaking the stale lock {path} ({path.read_text()!r})")
+                        path.unlink(missing_ok=True)
+                        continue
+                except FileNotFoundError:
+                    continue
+                time.sleep(poll_s)
+        stop = threading.Event()
+
+        def heartbeat():
+            while not stop.wait(stale_s / 4):
+                with contextlib.suppress(OSError):
+                    os.utime(path)
+        beat = threading.Thread(target=heartbeat, daemon=True)
+        beat.start()
+        try:
+            yield
+        finally:
+            stop.set()
+            beat.join()
+            with contextlib.suppress(OSError):
+                if path.read_text() == me:
+                    path.unlink()

@@ -1,0 +1,183 @@
+"""SSIM in Dr.Jit (float64): the per-channel form the study reports and MATLAB's volume form the
+thesis used, computed together from one pair of separable passes.
+
+Per-channel (scikit-image 0.26.0 structural_similarity, gaussian_weights=True, sigma 1.5,
+use_sample_covariance=False, data_range 255, K1 0.01, K2 0.03): each channel filtered by an 11-tap
+Gaussian (truncate 3.5: radius int(3.5 sigma + 0.5) = 5) with scipy.ndimage 'reflect' borders; the
+map is the channel mean of the SSIM maps; the scalar is the mean over channels of each map's mean
+with the 5-pixel border cropped.
+
+Volume (MATLAB `ssim` as shipped 2017-2018, on an H x W x 3 array): a 3-D Gaussian, sigma 1.5 on
+all three axes, filter size 2*ceil(3 sigma)+1 = 11 (ssim.m passes FilterSize itself; imgaussfilt3's
+own default 2*ceil(2 sigma)+1 = 7 does not apply), 'replicate' padding on all three axes,
+C1 = (0.01 L)^2, C2 = (0.03 L)^2, C3 = C2/2 and exponents 1 (so Wang et al.'s eq. 13), L = 255 for
+uint8; ssimval = mean of the map over all H*W*3 voxels, borders included. Along the channel axis
+(3 samples, radius 5, replicate) the Gaussian reduces to a fixed 3x3 mixing of the channels, which
+commutes with the spatial filter.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from backend import dr
+
+from study.metrics import filters as jf
+
+SIGMA = 1.5
+K1, K2 = 0.01, 0.03
+DATA_RANGE = 255.0
+SKIMAGE_TRUNCATE = 3.5
+
+
+def skimage_radius(sigma: float = SIGMA) -> int:
+    return int(SKIMAGE_TRUNCATE * sigma + 0.5)
+
+
+def matlab_radius(sigma: float = SIGMA) -> int:
+    return int(math.ceil(3 * sigma))
+
+
+def channel_mixing(weights: np.ndarray, channels: int = 3) -> np.ndarray:
+    """M[c, c'] = weight the 1-D filter along the channel axis ('replicate' padding) gives channel
+    c' in output channel c."""
+    r = len(weights) // 2
+    m = np.zeros((channels, channels))
+    for c in range(channels):
+        for k in range(-r, r + 1):
+            m[c, jf.border_index(c + k, channels, "clamp")] += weights[k + r]
+    return m
+
+
+def _check(ref8: np.ndarray, x8: np.ndarray, radius: int) -> None:
+    if ref8.shape != x8.shape or ref8.ndim != 3 or ref8.shape[2] != 3:
+        raise ValueError(f"SSIM needs two H x W x 3 images of one shape, got {ref8.shape} and {x8.shape}")
+    h, w = ref8.shape[:2]
+    if min(h, w) < 2 * radius + 1:
+        raise ValueError(f"SSIM needs images of at least {2 * radius + 1}x{2 * radius + 1} pixels, got {w}x{h}")
+
+
+def _ssim_formula(ux, uy, uxx, uyy, uxy, c1, c2):
+    vx = uxx - ux * ux
+    vy = uyy - uy * uy
+    vxy = uxy - ux * uy
+    return ((2.0 * ux * uy + c1) * (2.0 * vxy + c2)) / ((ux * ux + uy * uy + c1) * (vx + vy + c2))
+
+
+def _volume_frame(lay: jf.Layout, planes: list, sigma: float, c1: float, c2: float):
+    """(rows, cols, per-pixel channel sum of the volume SSIM) on the pixels within the filter radius
+    of a border, where 'replicate' and 'reflect' differ: a direct 2-D window per pixel, 'replicate'
+    (clamped) taps, float64."""
+    J = jf.jit()
+    r = matlab_radius(sigma)
+    w = jf.gaussian_weights(sigma, r)
+    mix = channel_mixing(w)
+    h, wd = lay.h, lay.w
+    edge_rows = np.unique(np.r_[0:min(r, h), max(h - r, 0):h])
+    mid_rows = np.arange(min(r, h), max(h - r, min(r, h)))
+    edge_cols = np.unique(np.r_[0:min(r, wd), max(wd - r, 0):wd])
+    ys = np.r_[np.repeat(edge_rows, wd), np.repeat(mid_rows, edge_cols.size)]
+    xs = np.r_[np.tile(np.arange(wd), edge_rows.size), np.tile(edge_cols, mid_rows.size)]
+    y, x = J.Int32(ys.astype(np.int32)), J.Int32(xs.astype(np.int32))
+    acc = [None] * 15
+    for dy in range(-r, r + 1):
+        row = J.UInt32(dr.clip(y + dy, 0, h - 1)) * lay.wg
+        for dx in range(-r, r + 1):
+            idx = row + J.UInt32(dr.clip(x + dx, 0, wd - 1))
+            wt = float(w[dy + r] * w[dx + r])
+            for c in range(3):
+                a = dr.gather(J.Float64, planes[2 * c], idx)
+                b = dr.gather(J.Float64, planes[2 * c + 1], idx)
+                for q, v in enumerate((a, b, a * a, b * b, a * b)):
+                    t = v * wt
+                    k = 5 * c + q
+                    acc[k] = t if acc[k] is None else acc[k] + t
+    tot = _mixed_ssim(acc, mix, c1, c2)
+    return ys, xs, tot.numpy()
+
+
+def _mixed_ssim(v: list, mix: np.ndarray, c1: float, c2: float):
+    """Sum over channels of SSIM after mixing the 15 per-channel statistics across channels."""
+    tot = None
+    for c in range(3):
+        mixed = []
+        for qi in range(5):
+            acc = None
+            for cc in range(3):
+                t = v[5 * cc + qi] * float(mix[c, cc])
+                acc = t if acc is None else acc + t
+            mixed.append(acc)
+        sc = _ssim_formula(*mixed, c1, c2)
+        tot = sc if tot is None else tot + sc
+    return tot
+
+
+def ssim_both(ref8: np.ndarray, x8: np.ndarray, sigma: float = SIGMA, volume: bool = True):
+    """(per-channel mean SSIM, its map (H, W) float64, volume SSIM or None).
+
+    Both forms use the same 11-tap Gaussian (radius 5 for sigma 1.5 in both rules), so away from the
+    borders their filtered statistics coincide: the Dr.Jit passes compute them once (with
+    scikit-image's reflect borders) and the volume form's 5-pixel frame, where 'replicate' differs,
+    is recomputed directly (`_volume_frame`)."""
+    rc = skimage_radius(sigma)
+    _check(ref8, x8, rc)
+    h, w = ref8.shape[:2]
+    rv = matlab_radius(sigma)
+    shared = volume and rv == rc
+    lay = jf.Layout(h, w)
+    prec = "float64"
+    planes = []
+    for c in range(3):
+        planes += [lay.upload(ref8[..., c], prec), lay.upload(x8[..., c], prec)]
+
+    def quantities(v):
+        q = []
+        for c in range(3):
+            a, b = v[2 * c], v[2 * c + 1]
+            q += [a, b, a * a, b * b, a * b]
+        return q
+
+    wc = tuple(float(t) for t in jf.gaussian_weights(sigma, rc))
+    filters = [jf.Filter(i, wc, "reflect") for i in range(15)]
+    if volume and not shared:
+        filters += [jf.Filter(i, tuple(float(t) for t in jf.gaussian_weights(sigma, rv)), "clamp")
+                    for i in range(15)]
+    hs = jf.hpass(lay, planes, quantities, filters, prec)
+    vs = jf.vpass(lay, hs, [jf.Filter(i, f.weights, f.border) for i, f in enumerate(filters)], prec)
+    del hs
+    c1, c2 = (K1 * DATA_RANGE) ** 2, (K2 * DATA_RANGE) ** 2
+    s = None
+    for c in range(3):
+        sc = _ssim_formula(*vs[5 * c:5 * c + 5], c1, c2)
+        s = sc if s is None else s + sc
+    smap = lay.download(s * (1.0 / 3.0))
+    mean = float(smap[rc:h - rc, rc:w - rc].mean(dtype=np.float64))
+    if not volume:
+        return mean, smap, None
+    mix = channel_mixing(jf.gaussian_weights(sigma, rv))
+    vmap = lay.download(_mixed_ssim(vs if shared else vs[15:], mix, c1, c2))
+    if shared:
+        ys, xs, vals = _volume_frame(lay, planes, sigma, c1, c2)
+        vmap[ys, xs] = vals
+    return mean, smap, float(vmap.mean(dtype=np.float64) / 3.0)
+
+
+def ssim(ref8: np.ndarray, x8: np.ndarray, sigma: float = SIGMA) -> tuple[float, np.ndarray]:
+    mean, smap, _ = ssim_both(ref8, x8, sigma, volume=False)
+    return mean, smap
+
+
+def ssim_volume(ref8: np.ndarray, x8: np.ndarray, sigma: float = SIGMA) -> float:
+    """MATLAB's SSIM of two H x W x 3 arrays as volumes; any H, W >= 1 (as MATLAB allows)."""
+    if ref8.shape != x8.shape or ref8.ndim != 3 or ref8.shape[2] != 3 or min(ref8.shape[:2]) < 1:
+        raise ValueError(f"SSIM needs two H x W x 3 images of one shape, got {ref8.shape} and {x8.shape}")
+    if min(ref8.shape[:2]) >= 2 * skimage_radius(sigma) + 1:
+        return ssim_both(ref8, x8, sigma, volume=True)[2]
+    # Smaller than the window: every pixel is a border pixel, computed directly.
+    lay = jf.Layout(*ref8.shape[:2])
+    planes = []
+    for c in range(3):
+        planes += [lay.upload(ref8[..., c], "float64"), lay.upload(x8[..., c], "float64")]
+    _, _, vals = _volume_frame(lay, planes, sigma, (K1 * DATA_RANGE) ** 2, (K2 * DATA_RANGE) ** 2)
+    return float(vals.mean(dtype=np.float64) / 3.0)

@@ -1,0 +1,377 @@
+"""The study's interactive comparison report: one static page, out/report.html, that works from
+file:// with no server and no network (its script and style are inlined; it shows the study's own
+PNGs from out/images and out/maps by relative path).
+
+    study.reporting.html_report.write(out_dir, data) -> out_dir / "report.html"
+
+`data` (JSON-serialisable; every path relative to out_dir, and every file it names must exist):
+
+    {"title": str, "profile": str,
+     "resolution": {scene: [width, height]},
+     "scenes": {scene: {
+         "agreement": {name: value, ...} or None,    # study.engine.agreement's dict, shown under the scene
+         "reference_bound": str,                     # the reference's per-pixel noise bound, in words
+         "plots": ["plots/....png", ...],            # optional: static figures shown under the scene
+         "static": {protocol label: {
+             "reference": "images/....png",
+             "techniques": {label: {"image": "images/....png",
+                                    "ssim_map": "maps/..._ssim.png" or None,
+                                    "flip_map": "maps/..._flip.png" or None,
+                                    "metrics": {"psnr": float, "ssim": float, "flip_ldr": float, ...}}}}},
+         "ghosting": {protocol name: {
+             "frames": [frame ids],
+             "reference": ["images/....png", one per frame],
+             "techniques": {label: {"images": [one per frame],
+                                    "metrics": {metric: [value or None, one per frame]}}}}}}},
+     "tables": {stem: {"title": str, "note": str (optional), "header": [str], "rows": [[str]],
+                       "links": [[row, column, "images/....png"], ...]}}}
+
+Tables are shown in the order headline, reproduction, history_convergence, speed_error, then the
+rest as given; a linked cell opens its image in the viewer that holds it (or the file itself).
+
+`collect(out_dir)` builds such a dict from a finished study folder alone (tables, images, maps,
+manifest); it has no per-frame ghosting images or metrics, so its scenes have no ghosting viewers.
+
+The viewer draws on a canvas with nearest-neighbour pixels. Its exposure control acts on the
+display PNGs (tone-mapped, sRGB): an SVG filter decodes sRGB to linear, multiplies by 2^EV and
+re-encodes, so +1 EV doubles the displayed linear light (clipped at white); it cannot bring back
+highlights the tone map compressed.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import math
+import re
+from pathlib import Path
+
+from study.reporting.encode import slug
+
+TABLE_ORDER = ("headline", "reproduction", "history_convergence", "speed_error")
+KEYS_HELP = [
+    ("1–9", "reference (1), techniques (2…)"), ("← → or [ ]", "previous / next image"),
+    ("space", "back to the last image shown"), ("i s f", "image, SSIM map, FLIP map"),
+    ("+ − 0", "zoom in, out, fit"), ("drag, wheel", "pan, zoom at the cursor"),
+    ("e E x", "exposure +½ EV, −½ EV, reset"), (", .", "previous / next frame (ghosting)"),
+]
+
+
+class ReportDataError(ValueError):
+    """`data` does not have the documented shape; the message names the field."""
+
+
+def _need(cond: bool, where: str, what: str) -> None:
+    if not cond:
+        raise ReportDataError(f"html report: {where}: {what}")
+
+
+def _finite_or_none(v, where: str):
+    if v is None:
+        return None
+    _need(isinstance(v, (int, float)) and not isinstance(v, bool), where, f"expected a number or null, got {v!r}")
+    return float(v) if math.isfinite(v) else None
+
+
+def validate(out_dir: Path, data: dict) -> dict:
+    """Checks `data` against the shape above (and that every image exists); returns a copy with
+    non-finite numbers as null (JSON has no NaN)."""
+    out_dir = Path(out_dir)
+    _need(isinstance(data, dict), "data", "expected a dict")
+    missing = []
+
+    def path(p, where):
+        _need(isinstance(p, str) and p and not p.startswith(("/", "\\")) and ".." not in Path(p).parts,
+              where, f"expected a path relative to the output folder, got {p!r}")
+        if not (out_dir / p).is_file():
+            missing.append(f"{where} = {p}")
+        return p
+
+    clean = {"title": str(data.get("title", "TAA study")), "profile": str(data.get("profile", "")),
+             "resolution": {}, "scenes": {}, "tables": {}}
+    for scene, wh in (data.get("resolution") or {}).items():
+        _need(isinstance(wh, (list, tuple)) and len(wh) == 2 and all(isinstance(v, int) and v > 0 for v in wh),
+              f"resolution.{scene}", f"expected [width, height], got {wh!r}")
+        clean["resolution"][scene] = list(wh)
+    scenes = data.get("scenes") or {}
+    _need(isinstance(scenes, dict), "scenes", "expected a dict scene -> tests")
+    for scene, sd in scenes.items():
+        w = f"scenes.{scene}"
+        _need(isinstance(sd, dict), w, "expected a dict")
+        agree = sd.get("agreement")
+        _need(agree is None or isinstance(agree, dict), f"{w}.agreement", "expected a dict or null")
+        cs = {"agreement": None if agree is None else {str(k): (_finite_or_none(v, f"{w}.agreement.{k}")
+                                                                if isinstance(v, (int, float)) and not isinstance(v, bool)
+                                                                else v) for k, v in agree.items()},
+              "reference_bound": str(sd.get("reference_bound") or ""), "static": {}, "ghosting": {},
+              "plots": [path(p, f"{w}.plots[{i}]") for i, p in enumerate(sd.get("plots") or [])]}
+        for proto, pd in (sd.get("static") or {}).items():
+            wp = f"{w}.static.{proto}"
+            _need(isinstance(pd, dict) and isinstance(pd.get("techniques"), dict), wp,
+                  "expected {'reference': path, 'techniques': {label: ...}}")
+            cp = {"reference": path(pd.get("reference"), f"{wp}.reference"), "techniques": {}}
+            for label, td in pd["techniques"].items():
+                wt = f"{wp}.techniques.{label}"
+                _need(isinstance(td, dict), wt, "expected a dict")
+                cp["techniques"][label] = {
+                    "image": path(td.get("image"), f"{wt}.image"),
+                    "ssim_map": None if td.get("ssim_map") is None else path(td["ssim_map"], f"{wt}.ssim_map"),
+                    "flip_map": None if td.get("flip_map") is None else path(td["flip_map"], f"{wt}.flip_map"),
+                    "metrics": {m: _finite_or_none(v, f"{wt}.metrics.{m}") for m, v in (td.get("metrics") or {}).items()}}
+            cs["static"][proto] = cp
+        for proto, gd in (sd.get("ghosting") or {}).items():
+            wg = f"{w}.ghosting.{proto}"
+            _need(isinstance(gd, dict), wg, "expected a dict")
+            frames = gd.get("frames")
+            _need(isinstance(frames, list) and frames and all(isinstance(f, int) for f in frames), f"{wg}.frames",
+                  f"expected a non-empty list of frame ids, got {frames!r}")
+            n = len(frames)
+            refs = gd.get("reference")
+            _need(isinstance(refs, list) and len(refs) == n, f"{wg}.reference",
+                  f"expected {n} paths (one per frame), got {refs if not isinstance(refs, list) else len(refs)}")
+            cg = {"frames": frames, "reference": [path(p, f"{wg}.reference[{i}]") for i, p in enumerate(refs)],
+                  "techniques": {}}
+            for label, td in (gd.get("techniques") or {}).items():
+                wt = f"{wg}.techniques.{label}"
+                imgs = td.get("images") if isinstance(td, dict) else None
+                _need(isinstance(imgs, list) and len(imgs) == n, f"{wt}.images", f"expected {n} paths (one per frame)")
+                metrics = {}
+                for m, vals in (td.get("metrics") or {}).items():
+                    _need(isinstance(vals, list) and len(vals) == n, f"{wt}.metrics.{m}",
+                          f"expected {n} values (one per frame)")
+                    metrics[m] = [_finite_or_none(v, f"{wt}.metrics.{m}[{i}]") for i, v in enumerate(vals)]
+                cg["techniques"][label] = {"images": [path(p, f"{wt}.images[{i}]") for i, p in enumerate(imgs)],
+                                           "metrics": metrics}
+            cs["ghosting"][proto] = cg
+        if scene not in clean["resolution"]:
+            raise ReportDataError(f"html report: resolution.{scene}: missing (every scene needs [width, height])")
+        clean["scenes"][scene] = cs
+    for stem, td in (data.get("tables") or {}).items():
+        wt = f"tables.{stem}"
+        _need(isinstance(td, dict) and isinstance(td.get("header"), list) and isinstance(td.get("rows"), list),
+              wt, "expected {'title', 'header': [...], 'rows': [[...]]}")
+        ncol = len(td["header"])
+        for i, r in enumerate(td["rows"]):
+            _need(isinstance(r, list) and len(r) == ncol, f"{wt}.rows[{i}]", f"expected {ncol} cells")
+        links = []
+        for i, link in enumerate(td.get("links") or []):
+            _need(isinstance(link, (list, tuple)) and len(link) == 3 and isinstance(link[0], int)
+                  and isinstance(link[1], int) and 0 <= link[0] < len(td["rows"]) and 0 <= link[1] < ncol,
+                  f"{wt}.links[{i}]", f"expected [row, column, path] inside the table, got {link!r}")
+            links.append([link[0], link[1], path(link[2], f"{wt}.links[{i}]")])
+        clean["tables"][stem] = {"title": str(td.get("title", stem)), "note": str(td.get("note") or ""),
+                                 "header": [str(h) for h in td["header"]],
+                                 "rows": [[str(c) for c in r] for r in td["rows"]], "links": links}
+    if missing:
+        raise ReportDataError(f"html report: {len(missing)} image(s) missing under {out_dir}: "
+                              + "; ".join(missing[:5]) + (" ..." if len(missing) > 5 else ""))
+    return clean
+
+
+def _table_order(tables: dict) -> list[str]:
+    first = [t for t in TABLE_ORDER if t in tables]
+    return first + [t for t in tables if t not in first]
+
+
+def viewer_model(data: dict) -> list[dict]:
+    """What the page's script gets: one entry per viewer, its layers as a list (the reference
+    first), so that no order rests on a JSON object's keys."""
+    out = []
+    for scene, sd in data["scenes"].items():
+        size = data["resolution"].get(scene)
+        for proto, pd in sd["static"].items():
+            layers = [{"label": "Reference", "images": [pd["reference"]], "ssim": None, "flip": None, "metrics": {}}]
+            layers += [{"label": label, "images": [t["image"]], "ssim": t["ssim_map"], "flip": t["flip_map"],
+                        "metrics": t["metrics"]} for label, t in pd["techniques"].items()]
+            out.append({"id": f"v-{slug(scene)}-{slug(proto)}", "scene": scene, "kind": "static", "proto": proto,
+                        "size": size, "frames": [0], "layers": layers})
+        for proto, gd in sd["ghosting"].items():
+            layers = [{"label": "Reference", "images": gd["reference"], "ssim": None, "flip": None, "metrics": {}}]
+            layers += [{"label": label, "images": t["images"], "ssim": None, "flip": None, "metrics": t["metrics"]}
+                       for label, t in gd["techniques"].items()]
+            out.append({"id": f"v-{slug(scene)}-{slug(proto)}", "scene": scene, "kind": "ghosting", "proto": proto,
+                        "size": size, "frames": gd["frames"], "layers": layers})
+    ids = [v["id"] for v in out]
+    _need(len(set(ids)) == len(ids), "scenes", f"two viewers share an id (scene or protocol names that differ "
+                                               f"only in punctuation): {sorted({i for i in ids if ids.count(i) > 1})}")
+    return out
+
+
+def render(data: dict) -> str:
+    """The page for validated data."""
+    import jinja2
+    env = jinja2.Environment(loader=jinja2.PackageLoader("study.reporting", "templates"), autoescape=True,
+                             undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True)
+    env.policies["json.dumps_kwargs"] = {"sort_keys": False, "allow_nan": False}
+    src = lambda name: env.loader.get_source(env, name)[0]   # noqa: E731 — raw files, not templates
+    links = {stem: {(r, c): p for r, c, p in t["links"]} for stem, t in data["tables"].items()}
+    return env.get_template("report.html.j2").render(
+        data=data, model={"viewers": viewer_model(data)}, links=links, table_order=_table_order(data["tables"]),
+        keys_help=KEYS_HELP, script=src("report.js"), style=src("report.css"), slug=slug)
+
+
+def write(out_dir: Path, data: dict) -> Path:
+    """Validate `data`, write out_dir/report.html, return its path."""
+    from provenance.files import write_text_atomic
+    out_dir = Path(out_dir)
+    page = render(validate(out_dir, data))
+    target = out_dir / "report.html"
+    write_text_atomic(target, page)
+    return target
+
+
+# -- a report from a finished study folder ------------------------------------------------------------
+def _number(cell: str):
+    """The leading number of a table cell ('42.1', '42.1 / 0.99', '∞'), or None."""
+    cell = cell.strip()
+    if cell.startswith("∞"):
+        return None
+    m = re.match(r"[-+]?\d+(?:\.\d+)?(?:[eE][-+]?\d+)?", cell)
+    return float(m.group()) if m else None
+
+
+def _read_csv(p: Path) -> tuple[list[str], list[list[str]]]:
+    rows = list(csv.reader(p.read_text().splitlines()))
+    return (rows[0], rows[1:]) if rows else ([], [])
+
+
+def _md_title_note(p: Path) -> tuple[str, str]:
+    """Title and note of a table's Markdown file (study.reporting.tables.Table.markdown's layout)."""
+    if not p.exists():
+        return p.stem, ""
+    lines = p.read_text().splitlines()
+    title = lines[0].lstrip("# ").strip() if lines else p.stem
+    note = lines[2].strip() if len(lines) > 2 and not lines[2].startswith("|") else ""
+    return title, note
+
+
+def static_scenes(listed) -> list[str]:
+    """The scenes of a study's static test, from the file names it lists (images/static_<scene>_reference.png
+    with tables/static_<scene>.csv)."""
+    names = sorted({rel[len("images/static_"):-len("_reference.png")] for rel in listed
+                    if rel.startswith("images/static_") and rel.endswith("_reference.png")})
+    # "static_converged_X_reference" reads as scene "converged_X" of stem "static" too: where X is a
+    # scene of its own, it is X's converged protocol.
+    return [s for s in names if f"tables/static_{s}.csv" in listed
+            and not (s.startswith("converged_") and s[len("converged_"):] in names)]
+
+
+def collect(out_dir: Path) -> dict:
+    """`data` for write() from the files of a finished study in out_dir (see the module docstring)."""
+    from PIL import Image
+
+    from study.reporting.tables import METRIC_LABELS
+    out_dir = Path(out_dir)
+    manifest = json.loads((out_dir / "manifest.json").read_text())
+    summary, listed = manifest.get("summary", {}), manifest.get("artefacts", {})
+    metric_key = {v: k for k, v in METRIC_LABELS.items()}
+    have = lambda rel: rel in listed and (out_dir / rel).is_file()   # noqa: E731
+
+    stems = ("static", "static_converged")
+    scene_names = [s for s in static_scenes(listed) if have(f"tables/static_{s}.csv")]
+    data = {"title": f"TAA study ({summary.get('profile', '?')} profile)", "profile": summary.get("profile", ""),
+            "resolution": {}, "scenes": {}, "tables": {}}
+    conv_rows = {}
+    if have("tables/reference_convergence.csv"):
+        header, rows = _read_csv(out_dir / "tables/reference_convergence.csv")
+        conv_rows = {r[0]: dict(zip(header, r)) for r in rows}
+        _, conv_note = _md_title_note(out_dir / "tables/reference_convergence.md")
+    images_of = {}       # (stem, scene, label) -> image path
+    for scene in scene_names:
+        sd = {"agreement": None, "reference_bound": "", "static": {}, "ghosting": {}}
+        for stem in stems:
+            table = f"tables/{stem}_{scene}.csv"
+            ref = f"images/{stem}_{scene}_reference.png"
+            if not (have(table) and have(ref)):
+                continue
+            header, rows = _read_csv(out_dir / table)
+            labels = header[1:-2]
+            techniques = {}
+            for li, label in enumerate(labels, start=1):
+                base = f"{stem}_{scene}_{slug(label)}"
+                img = f"images/{base}.png"
+                if not have(img):
+                    continue
+                images_of[(stem, scene, label)] = img
+                for kind in ("ssim", "flip"):
+                    if have(f"maps/{base}_{kind}.png"):
+                        images_of[(stem, scene, label, kind)] = f"maps/{base}_{kind}.png"
+                techniques[label] = {
+                    "image": img,
+                    "ssim_map": f"maps/{base}_ssim.png" if have(f"maps/{base}_ssim.png") else None,
+                    "flip_map": f"maps/{base}_flip.png" if have(f"maps/{base}_flip.png") else None,
+                    "metrics": {metric_key.get(r[0], r[0]): _number(r[li]) for r in rows if r and r[0]}}
+            title, note = _md_title_note(out_dir / f"tables/{stem}_{scene}.md")
+            m = re.fullmatch(rf"Static test, (.+): {re.escape(scene)}", title)
+            sd["static"][m.group(1) if m else stem] = {"reference": ref, "techniques": techniques}
+            m = re.search(r"Reference agreement.*", note)
+            if m and sd["agreement"] is None:
+                sd["agreement"] = {"note": m.group().strip()}
+        if scene in conv_rows:
+            r = conv_rows[scene]
+            sd["reference_bound"] = "; ".join(f"{k}: {v}" for k, v in r.items() if k != "scene") + \
+                                    (f". {conv_note}" if conv_note else "")
+        sd["plots"] = sorted(rel for rel in listed if rel.startswith("plots/") and rel.endswith(f"_{scene}.png")
+                             and have(rel))
+        with Image.open(out_dir / next(iter(sd["static"].values()))["reference"]) as im:
+            data["resolution"][scene] = list(im.size)
+        data["scenes"][scene] = sd
+
+    for rel in sorted(listed):
+        if not (rel.startswith("tables/") and rel.endswith(".csv")) or not have(rel):
+            continue
+        stem = Path(rel).stem
+        header, rows = _read_csv(out_dir / rel)
+        title, note = _md_title_note(out_dir / rel.replace(".csv", ".md"))
+        data["tables"][stem] = {"title": title, "note": note, "header": header, "rows": rows,
+                                "links": _links(stem, header, rows, images_of, scene_names)}
+    return data
+
+
+def _links(stem: str, header: list[str], rows: list[list[str]], images_of: dict, scenes: list[str]) -> list:
+    """The images behind a table's cells, for the tables whose rows name a scene and a technique."""
+    links = []
+    col = {h: i for i, h in enumerate(header)}
+    converged = lambda scene, label: images_of.get(("static_converged", scene, label)) or \
+        images_of.get(("static", scene, label))     # noqa: E731
+    if stem == "headline":
+        seen = {}
+        for r, row in enumerate(rows):
+            scene = row[0]
+            nth = seen.get(scene, 0)            # the protocols come in the static views' order
+            seen[scene] = nth + 1
+            pstem = ("static", "static_converged")[min(nth, 1)]
+            for c, label in enumerate(header[2:-1], start=2):
+                if (pstem, scene, label) in images_of:
+                    links.append([r, c, images_of[(pstem, scene, label)]])
+    elif stem in ("speed_error", "history_convergence"):
+        for r, row in enumerate(rows):
+            scene, label = row[0], row[1]
+            if converged(scene, label):
+                links.append([r, 1, converged(scene, label)])
+            if stem == "history_convergence" and ("static", scene, label) in images_of and len(row) > 2:
+                links.append([r, 2, images_of[("static", scene, label)]])
+            if stem == "history_convergence" and converged(scene, label) and len(row) > 3:
+                links.append([r, 3, converged(scene, label)])
+    elif stem == "reproduction":
+        for r, row in enumerate(rows):
+            scene = row[0].split(" (")[0]
+            pstem = "static_converged" if "converged" in row[0] else "static"
+            best = row[col.get("our ranking (PSNR)", 2)].split(" > ")[0].strip() if len(row) > 2 else ""
+            if (pstem, scene, best) in images_of:
+                links.append([r, 2, images_of[(pstem, scene, best)]])
+    else:
+        for pstem in ("static_converged", "static"):      # static_<scene> and static_converged_<scene>
+            scene = stem[len(pstem) + 1:] if stem.startswith(pstem + "_") else None
+            if scene in scenes:
+                for c, label in enumerate(header[1:-2], start=1):
+                    for r, row in enumerate(rows):
+                        # the SSIM and FLIP rows open the maps behind them, the others the image
+                        kind = "ssim" if row[0] == "SSIM" else "flip" if row[0].startswith("FLIP") else None
+                        p = images_of.get((pstem, scene, label, kind)) or images_of.get((pstem, scene, label))
+                        if p:
+                            links.append([r, c, p])
+                break
+    return links
+
+
+__all__ = ["write", "render", "validate", "collect", "ReportDataError"]

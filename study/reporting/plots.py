@@ -1,0 +1,99 @@
+"""The study's plots (matplotlib, Agg): PNG bytes of ghosting curves, error against history length,
+the references' convergence and speed against error with its Pareto front."""
+from __future__ import annotations
+
+import io
+
+import numpy as np
+
+
+def _pyplot():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def pareto(points: dict[str, tuple[float, float]]) -> set[str]:
+    """Labels not dominated in (time lower, error lower)."""
+    front = set()
+    for a, (ta, ea) in points.items():
+        if not any((tb <= ta and eb <= ea) and (tb < ta or eb < ea) for b, (tb, eb) in points.items() if b != a):
+            front.add(a)
+    return front
+
+
+def history(scene: str, per_label: dict, thesis_history: int) -> bytes:
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6, 3.4))
+    for l, per in per_label.items():
+        ns = sorted(per)
+        ax.plot(ns, [min(per[n]["psnr"], 99) for n in ns], marker=".", lw=0.9, label=l)
+    ax.axvline(thesis_history, color="k", ls=":", lw=0.8, label=f"thesis ({thesis_history})")
+    ax.set_xscale("log", base=2)
+    ax.set_xlabel("frames of history")
+    ax.set_ylabel("PSNR (dB)")
+    ax.set_title(f"TAA convergence: {scene}")
+    ax.legend(fontsize=6, loc="center left", bbox_to_anchor=(1.0, 0.5))
+    fig.tight_layout()
+    return fig_bytes(fig)
+
+
+def fig_bytes(fig) -> bytes:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110, metadata={"Software": None})
+    import matplotlib.pyplot as plt
+    plt.close(fig)
+    return buf.getvalue()
+
+
+def series(res) -> bytes:
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6, 3.2))
+    for l in res.per_frame:
+        ax.plot(res.frames, [min(res.per_frame[l][t]["psnr"], 99) for t in res.frames], label=l)
+    ax.set_xlabel("frame")
+    ax.set_ylabel("PSNR (dB)")
+    ax.set_title(f"Ghosting test: {res.scene}")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return fig_bytes(fig)
+
+
+def convergence(refs) -> bytes:
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6, 3.6))
+    for name, r in refs.items():
+        h = r.noise_history
+        if h:
+            ax.plot([x[0] for x in h], [x[2] for x in h], label=name, lw=0.9)
+    ax.set_xscale("log")
+    ax.set_xlabel("samples per pixel")
+    ax.set_ylabel("reference noise PSNR (dB)")
+    ax.legend(fontsize=5, ncol=2)
+    fig.tight_layout()
+    return fig_bytes(fig)
+
+
+def speed(statics) -> bytes:
+    """Median total cost against mean FLIP, one marker per technique, labelled beside it; the legend
+    sits outside the axes so it covers no point."""
+    plt = _pyplot()
+    labels = list(statics[0].per_frame)
+    med = {l: (float(np.median([r.ms[l] for r in statics])),
+               float(np.mean([r.per_frame[l][r.frames[-1]]["flip_ldr"] for r in statics]))) for l in labels}
+    fig, ax = plt.subplots(figsize=(8, 4))
+    markers = "osD^vP*Xh<>p"
+    for i, l in enumerate(labels):
+        x, y = med[l]
+        ax.scatter([x], [y], marker=markers[i % len(markers)], s=36, label=l, zorder=3)
+        ax.annotate(l, (x, y), textcoords="offset points", xytext=(5, 4 if i % 2 else -9), fontsize=6)
+    front = sorted(pareto(med), key=lambda l: med[l][0])
+    ax.plot([med[l][0] for l in front], [med[l][1] for l in front], "k--", lw=0.8, label="Pareto front", zorder=2)
+    ax.set_xscale("log")
+    ax.set_xlabel("total ms per output frame (samples shaded + resolve; median over scenes)")
+    ax.set_ylabel("mean FLIP (LDR)")
+    ax.margins(x=0.15, y=0.12)
+    ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
+    fig.tight_layout()
+    return fig_bytes(fig)

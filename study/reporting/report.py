@@ -1,0 +1,235 @@
+"""A study's artefacts in its output folder: per test the thesis-layout static table, the ghosting
+table, display images, SSIM/FLIP maps and plots (Report); the summary tables (study.reporting.
+summaries); the manifest; and the interactive report (write_study)."""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from display import DisplayTransform
+from provenance.files import write_bytes_atomic, write_text_atomic
+from study.engine.results import shown_frames
+from study.reporting import plots
+from study.reporting.encode import display_8bit, exr_bytes, magma, png, slug
+from study.reporting.summaries import Summaries
+from study.reporting.tables import METRIC_LABELS, Table, fmt, thesis_layout
+from study.reporting.thesis import THESIS_COLUMNS
+
+STATIC_METRICS = ["mse", "rmsd", "psnr", "snr", "ssim", "flip_ldr", "flip_hdr", "relmse_hdr", "ms"]
+GHOST_METRICS = ["mse", "psnr", "ssim", "flip_ldr"]
+
+
+class Report(Summaries):
+    """Artefacts of one study in `out`. Every file is listed in manifest.json with the keys of its
+    inputs and its SHA-256; a file whose inputs and content are unchanged is not made again, and
+    `finish` removes every file of out/{tables,images,maps,plots} that this study did not write."""
+
+    FOLDERS = ("tables", "images", "maps", "plots")
+
+    def __init__(self, out: Path, artefacts=None, roles: dict | None = None):
+        """`artefacts`: the engine's reader of frames and maps (study.engine.results.Artefacts).
+        `roles`: thesis column (THESIS_COLUMNS) -> the label of the technique that *is* it (registry
+        name with default parameters; study.config.profile.thesis_roles), whatever the study calls it."""
+        self.out = Path(out)
+        self.artefacts = artefacts
+        self.roles = dict(roles) if roles is not None else {c: c for c in THESIS_COLUMNS}
+        self.improved = self.roles.get("Improved")
+        self.manifest: dict[str, dict] = {}
+        self.markdown: list[str] = []
+        try:
+            self.previous = json.loads((self.out / "manifest.json").read_text()).get("artefacts", {})
+        except (OSError, ValueError):
+            self.previous = {}
+
+    def _unchanged(self, rel: str, inputs: dict) -> bool:
+        prev = self.previous.get(rel)
+        path = self.out / rel
+        if not (isinstance(prev, dict) and prev.get("inputs") == json.loads(json.dumps(inputs, default=str))
+                and path.exists()):
+            return False
+        from provenance.files import sha256_file
+        return sha256_file(path) == prev.get("sha256")
+
+    def _file(self, rel: str, data, inputs: dict) -> None:
+        """Write `data` (str, bytes, or a function making them) unless inputs and file are unchanged."""
+        path = self.out / rel
+        if callable(data):
+            if self._unchanged(rel, inputs):
+                self.manifest[rel] = self.previous[rel]
+                return
+            data = data()
+        (write_text_atomic if isinstance(data, str) else write_bytes_atomic)(path, data)
+        import hashlib
+        raw = data.encode() if isinstance(data, str) else data
+        self.manifest[rel] = {"inputs": json.loads(json.dumps(inputs, default=str)),
+                              "sha256": hashlib.sha256(raw).hexdigest()}
+
+    def _table(self, stem: str, table: Table, inputs: dict) -> None:
+        self._file(f"tables/{stem}.md", table.markdown(), inputs)
+        self._file(f"tables/{stem}.csv", table.csv(), inputs)
+        self._file(f"tables/{stem}.tex", table.latex(), inputs)
+        self.markdown.append(table.markdown())
+
+    @staticmethod
+    def _floor_note(agree: dict | None) -> str:
+        if not agree:
+            return ""
+        return (f"Reference agreement (raster mean of {agree['raster_samples']} jittered frames vs reference): "
+                f"{agree['agreement_psnr_db']:.1f} dB; reference noise {agree['reference_noise_psnr_db']:.1f} dB "
+                f"at {agree['reference_spp']} spp")
+
+    # -- static ------------------------------------------------------------------------------
+    def static(self, res, agree: dict | None, ref, stem: str) -> None:
+        """One static protocol's table, display images and maps (res: a view of the static run)."""
+        n = res.frames[-1]
+        results = {l: {**res.per_frame[l][n], "ms": res.ms[l]} for l in res.per_frame}
+        inputs = {"runs": {l: a["run_key"] for l, a in res.artefacts.items()},
+                  "metrics": {l: a["metrics_key"] for l, a in res.artefacts.items()},
+                  "costs": {l: c.get("key") for l, c in res.costs.items()}}
+        note = (f"{res.test}: {res.width}x{res.height}, 8-bit display images; ms / frame = raster of the samples "
+                f"shaded + resolve (study.costs). " + self._floor_note(agree))
+        table = thesis_layout(f"Static test, {res.test}: {res.scene}", results, STATIC_METRICS,
+                              self.improved if self.improved in results else None, note)
+        self._table(f"{stem}_{res.scene}", table, inputs)
+        disp = DisplayTransform.from_reference(ref.image)
+        self._file(f"images/{stem}_{res.scene}_reference.png", lambda: png(disp.to_8bit(ref.image)),
+                   {"reference": ref.key})
+        for label, a in res.artefacts.items():
+            f = a["frame"]
+            key = {"run": a["run_key"], "metrics": a["metrics_key"], "frame": f}
+            base = f"{stem}_{res.scene}_{slug(label)}"
+
+            def image(a=a, f=f):
+                img = self.artefacts.frame(a, f)
+                return png(display_8bit(img, a["output_space"], disp))
+            self._file(f"images/{base}.png", image, key)
+            if f not in a["maps_for"]:
+                continue
+            maps = {}
+
+            def get_maps(a=a, f=f):
+                if not maps:
+                    maps.update(self.artefacts.maps(a, f))
+                return maps
+            self._file(f"maps/{base}_ssim.png",
+                       lambda: png(np.round(np.clip(get_maps()["ssim"], 0, 1) * 255).astype(np.uint8)), key)
+            self._file(f"maps/{base}_flip.png", lambda: png(magma(get_maps()["flip_ldr"])), key)
+            self._file(f"maps/{base}.exr", lambda: exr_bytes(get_maps()), key)
+
+    # -- ghosting ----------------------------------------------------------------------------
+    def ghosting(self, res, agree: dict | None, stem: str = "ghosting") -> None:
+        labels = list(res.per_frame)
+        header = ["metric", "statistic"] + labels
+        rows = []
+        for m in GHOST_METRICS:
+            stats = {}
+            for l in labels:
+                series = {t: res.per_frame[l][t][m] for t in res.frames}
+                finite = {t: v for t, v in series.items() if v is not None and not math.isnan(v)}
+                order = sorted(finite, key=lambda t: finite[t], reverse=m in ("psnr", "ssim"))
+                best, worst = order[0], order[-1]
+                mean = float(np.mean([min(v, 1e9) for v in finite.values()]))
+                stats[l] = (finite[best], best, finite[worst], worst, mean)
+            rows.append([METRIC_LABELS[m], "best (frame)"] + [f"{fmt(m, s[0])} ({s[1]})" for s in stats.values()])
+            rows.append(["", "worst (frame)"] + [f"{fmt(m, s[2])} ({s[3]})" for s in stats.values()])
+            rows.append(["", "mean"] + [fmt(m, s[4]) for s in stats.values()])
+        rows.append([METRIC_LABELS["temporal"], "sequence"] + [fmt("temporal", res.temporal[l]) for l in labels])
+        rows.append([METRIC_LABELS["ms"], "median"] + [fmt("ms", res.ms[l]) for l in labels])
+        note = (f"{res.test}: {len(res.frames)} frames at {res.width}x{res.height}, each against its own reference. "
+                + self._floor_note(agree))
+        inputs = {"runs": {l: a["run_key"] for l, a in res.artefacts.items()},
+                  "references": list(res.reference_keys.values())}
+        self._table(f"{stem}_{res.scene}", Table(f"Ghosting test, {res.test}: {res.scene}", header, rows, note), inputs)
+        self._file(f"plots/{stem}_{res.scene}.png", lambda: plots.series(res), inputs)
+
+    def ghosting_frames(self, res, reference, max_frames: int = 24) -> dict:
+        """Display images of a ghosting sequence for the HTML report's frame slider (at most
+        `max_frames`, evenly spaced), and its per-frame metrics. `reference(t)` gives frame t's
+        Reference. Returns the html_report 'ghosting' entry of this protocol."""
+        frames = shown_frames(res.frames, max_frames)     # the frames its runs keep (study.engine.plan)
+        stem = f"ghosting_frames/{res.test}_{res.scene}"
+        entry = {"frames": frames, "reference": [], "techniques": {}}
+        cache: dict = {}
+
+        def ref_of(t):
+            if t not in cache:
+                r = reference(t)
+                cache[t] = (r, DisplayTransform.from_reference(r.image))
+            return cache[t]
+        for t in frames:
+            rel = f"images/{stem}_reference_{t:04d}.png"
+            key = {"reference": res.reference_keys.get(t)}
+            self._file(rel, lambda t=t: png(ref_of(t)[1].to_8bit(ref_of(t)[0].image)), key)
+            entry["reference"].append(rel)
+        for label, a in res.artefacts.items():
+            imgs = []
+            for t in frames:
+                rel = f"images/{stem}_{slug(label)}_{t:04d}.png"
+
+                def image(a=a, t=t):
+                    img = self.artefacts.frame(a, t)
+                    return png(display_8bit(img, a["output_space"], ref_of(t)[1]))
+                self._file(rel, image, {"run": a["run_key"], "frame": t, "reference": res.reference_keys.get(t)})
+                imgs.append(rel)
+            entry["techniques"][label] = {
+                "images": imgs,
+                "metrics": {m: [res.per_frame[label][t].get(m) for t in frames] for m in GHOST_METRICS}}
+        return entry
+
+    def finish(self, summary: dict) -> None:
+        self._file("study.md", "# TAA study\n\n" + "\n".join(self.markdown), {"tables": sorted(self.manifest)})
+        removed = 0
+        for folder in self.FOLDERS:
+            for path in sorted((self.out / folder).rglob("*")) if (self.out / folder).exists() else []:
+                if path.is_file() and str(path.relative_to(self.out)) not in self.manifest:
+                    path.unlink()       # another study's (or an older run's) file: not this study's
+                    removed += 1
+        summary = {**summary, "stale_files_removed": removed}
+        write_text_atomic(self.out / "manifest.json",
+                          json.dumps({"summary": summary, "artefacts": self.manifest}, indent=1, sort_keys=True,
+                                     default=str))
+
+
+def write_study(out: Path, res, configs, summary: dict, start: float) -> None:
+    """Every table, image, map, plot and the interactive report of a study's results
+    (study.engine.results.StudyResults) into `out`; the manifest lists exactly these files."""
+    import time
+
+    from study.config.profile import thesis_roles
+    from study.reporting import html_report
+    report = Report(out, res.artefacts, thesis_roles(configs))
+    views = res.views
+    for vi, results in enumerate(views.values()):
+        for r in results:
+            report.static(r, res.agreements.get(r.scene), res.references[r.scene],
+                          "static" if vi == 0 else "static_converged")
+    for pname, results in res.ghosts.items():
+        for g in results:
+            report.ghosting(g, res.agreements.get(g.scene), stem=pname)
+    for s in res.sweeps:
+        report.sparse_cost([s], stem="sparse_sweep_" + s.scene,
+                           title=f"Sparse supersampling: mu against cost and quality ({s.scene}, {s.test})")
+    report.headline(views)
+    report.reproduction(views, res.ghosts)
+    converged = list(views.values())[-1] if views else []
+    report.speed_error(converged)
+    report.history_convergence(res.statics, res.thesis_history)
+    report.sparse_cost(converged + [g for gs in res.ghosts.values() for g in gs])
+    report.convergence(res.references)
+    ghost_views = {}
+    for pname, results in list(res.ghosts.items())[:1]:      # the first (the thesis's) ghosting protocol
+        for g in results:
+            ghost_views.setdefault(g.scene, {})[pname] = report.ghosting_frames(
+                g, lambda t, g=g: res.reference(g.scene, t, g.width, g.height))
+    report.finish({**summary, "seconds": round(time.perf_counter() - start, 2)})
+    data = html_report.collect(out)
+    for scene, gv in ghost_views.items():
+        if scene in data["scenes"]:
+            data["scenes"][scene]["ghosting"] = gv
+    for scene, agree in res.agreements.items():
+        if scene in data["scenes"]:
+            data["scenes"][scene]["agreement"] = agree
+    html_report.write(out, data)
