@@ -17,6 +17,7 @@ import pytest
 from PIL import Image
 
 from study.reporting import html_report
+from study.reporting.encode import slug
 from study.reporting.html_report import ReportDataError
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -41,7 +42,7 @@ def fake_study(out: Path, label_b: str = "Improved") -> dict:
     chk = ((xx + yy) % 2)[..., None] * 40
     techs = {}
     for i, label in enumerate(["No AA", label_b]):
-        s = html_report._slug(label) or f"t{i}"
+        s = slug(label) or f"t{i}"
         _png(out / f"images/static_tiny_{s}.png", np.array(COLOURS[["No AA", "Improved"][i]]) + chk)
         _png(out / f"maps/static_tiny_{s}_ssim.png", np.full((H, W), 100 + 100 * i))
         _png(out / f"maps/static_tiny_{s}_flip.png", np.full((H, W, 3), GREY))

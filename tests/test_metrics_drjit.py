@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from skimage.metrics import structural_similarity
 
+from display import DisplayTransform
 from study.metrics import flip as F
 from study.metrics import suite as metrics
 
@@ -214,7 +215,9 @@ class _Ref:
         self.image = image
 
 
-class _Display:
+class _Display(DisplayTransform):
+    """A display transform with a plain gamma (its output() splits as the real one's does)."""
+
     def encode(self, x):
         return np.clip(np.asarray(x, np.float64), 0, 1) ** (1 / 2.2)
 
@@ -224,7 +227,7 @@ def test_judge_run_keeps_maps_only_for_the_frames_asked():
     kept = [0, 1, 2]
     refs = {t: _Ref(rng.random((16, 24, 3)).astype(np.float32)) for t in kept}
     images = {t: np.clip(refs[t].image + 0.05, 0, 1).astype(np.float32) for t in kept}
-    disp = {t: _Display() for t in kept}
+    disp = {t: _Display(1.0, 1.0) for t in kept}
     ref8 = {t: np.round(disp[t].encode(refs[t].image) * 255).astype(np.uint8) for t in kept}
     res, maps = metrics.judge_run(images, "linear", refs, disp, ref8, kept)
     assert set(maps) == {"ssim", "flip_ldr", "flip_hdr"} and set(res["per_frame"]) == {"0", "1", "2"}
