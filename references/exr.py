@@ -3,8 +3,9 @@ into place, so a reader never sees a half-written image.
 
 OpenEXR's Python binding prints some warnings (e.g. "Exception raised reading pixel data" for a
 truncated file) through Python's sys.stdout, which would corrupt a `--json` document. Each library
-call runs with sys.stdout captured; what it printed goes into the exception message if the call
-fails, else to stderr. (Its C core writes its own errors to stderr already.)
+call runs with sys.stdout captured, and with file descriptor 2 too: its C core writes each error
+of a damaged file to stderr itself, several times for one file. What either printed goes, once per
+line, into the exception message if the call fails, else to stderr.
 """
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ import io
 import os
 import secrets
 import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -23,18 +25,46 @@ class ExrError(ValueError):
     """An EXR file could not be read or written; the message names the file and the library's words."""
 
 
+@contextlib.contextmanager
+def _c_stderr(box: list):
+    """Collect what C code writes to file descriptor 2 during the block into `box` (one string)."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as tmp:
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield box
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            tmp.seek(0)
+            box.append(tmp.read().decode("utf-8", "replace"))
+
+
 def _call(what: str, path, fn):
-    """fn() with the library's stdout captured (see the module docstring)."""
-    said = io.StringIO()
+    """fn() with the library's stdout and C stderr captured (see the module docstring)."""
+    said, c_said = io.StringIO(), []
     try:
-        with contextlib.redirect_stdout(said):
+        with contextlib.redirect_stdout(said), _c_stderr(c_said):
             result = fn()
     except Exception as exc:
-        note = f" (OpenEXR: {said.getvalue().strip()})" if said.getvalue().strip() else ""
+        words = _once(said.getvalue() + "".join(c_said), str(path))
+        note = f" (OpenEXR: {words})" if words else ""
         raise ExrError(f"{path}: cannot {what} EXR file: {exc}{note}") from exc
-    if said.getvalue().strip():
-        print(f"{path}: OpenEXR: {said.getvalue().strip()}", file=sys.stderr)
+    words = _once(said.getvalue() + "".join(c_said), str(path))
+    if words:
+        print(f"{path}: OpenEXR: {words}", file=sys.stderr)
     return result
+
+
+def _once(text: str, path: str) -> str:
+    """The library's lines, each once, without the file name it repeats."""
+    lines = []
+    for line in text.splitlines():
+        line = line.strip().removeprefix(path).removeprefix(":").strip()
+        if line and line not in lines:
+            lines.append(line)
+    return "; ".join(lines)
 
 
 def _new_temp(folder: Path, stem: str) -> Path:

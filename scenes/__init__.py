@@ -20,7 +20,7 @@ def get_scene(name_or_path: str) -> ResolvedScene:
     from .builtin import BUILTIN
     if name_or_path in BUILTIN:
         return ResolvedScene(BUILTIN[name_or_path]())
-    if os.path.splitext(name_or_path)[1] in (".toml", ".json"):
+    if os.path.splitext(name_or_path)[1] in (".toml", ".json") or os.path.isdir(name_or_path):
         from .loader import load_scene_file
         return load_scene_file(name_or_path)
     raise SceneError(f"unknown scene {name_or_path!r}: not a built-in ({', '.join(BUILTIN)}) "

@@ -48,6 +48,8 @@ def parse(data: dict, where: str) -> Scene:
 
 
 def load_scene_file(path: str) -> ResolvedScene:
+    if os.path.isdir(path):
+        raise SceneError(f"{path}: is a folder, not a scene file (give a .toml or .json file)")
     if not os.path.isfile(path):
         raise SceneError(f"scene file not found: {path}")
     try:
@@ -60,5 +62,7 @@ def load_scene_file(path: str) -> ResolvedScene:
                 raise SceneError(f"{path}: scene files must end in .toml or .json")
     except (tomllib.TOMLDecodeError, json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise SceneError(f"{path}: cannot parse: {exc}") from None
+    except OSError as exc:
+        raise SceneError(f"{path}: cannot read the scene file ({exc.strerror})") from None
     desc = parse(data, path)
     return ResolvedScene(desc, base_dir=os.path.dirname(os.path.abspath(path)), source=path)

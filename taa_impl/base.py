@@ -146,6 +146,12 @@ def build_params(cls: type, params: Any = None, feedback: str | None = None, **o
             raise ValueError("give either a feedback preset or k_min/k_max, not both")
         kmin, kmax = FEEDBACK_PRESETS[feedback]
         p = dataclasses.replace(p, k_min=kmin, k_max=kmax)
+    if dataclasses.is_dataclass(p):
+        known = [f.name for f in dataclasses.fields(p)]
+        unknown = sorted(set(overrides) - set(known))
+        if unknown:
+            raise ValueError(f"unknown parameter{'s' if len(unknown) > 1 else ''} {', '.join(map(repr, unknown))} "
+                             f"of {cls.__name__}; its parameters: {', '.join(known)}")
     return dataclasses.replace(p, **overrides) if overrides else p
 
 

@@ -429,3 +429,15 @@ def test_zero_area_triangles_are_dropped_and_counted_in_the_one_warning(tmp_path
     msgs = [str(w.message) for w in caught if issubclass(w.category, SceneWarning)]
     assert len(msgs) == 1 and "1 zero-area triangles (dropped)" in msgs[0] and "hand.gltf" in msgs[0]
     assert s.meshes[0].faces.tolist() == [[2, 1, 0]]
+
+
+def test_alpha_cutoff_defaults_to_the_specs_half(glb):
+    # glTF 2.0, material.alphaCutoff: "Specifies the cutoff threshold when in MASK alpha mode ...
+    # default 0.5" — a MASK material without the field cuts out at 0.5
+    tmp, _ = glb
+    doc, binary = read_glb(tmp / "scene.glb")
+    leaf = next(m for m in doc["materials"] if m.get("alphaMode") == "MASK")
+    del leaf["alphaCutoff"]
+    write_glb_json(tmp / "scene.glb", doc, binary)
+    s = load_scene_file(scene_file(tmp))
+    assert s.desc.objects[_by_name(s)["leaf"]].material.alpha_threshold == 0.5

@@ -137,3 +137,29 @@ def test_improved_taa_sobel_weights_by_hand():
     assert s[1, 2] == pytest.approx(np.sqrt(0.216), rel=1e-6)
     assert s[1, 3] == pytest.approx(np.sqrt(0.216), rel=1e-6)
     assert s[1, 0] == 0.0
+
+
+# --------------------------------------------------- the reference's bound and the study's protocols
+def test_reference_bound_and_target_defaults_everywhere():
+    # spec: every pixel's display-domain SE within 0.5 LSB of 8 bits; mean noise 60 dB
+    import inspect
+
+    from references import ReferenceCache, render_reference, settings
+    from study.config.profile import Profile
+    from study.config.studyfile import StudyModel
+    assert settings.DEFAULTS == {"se_bound_lsb": 0.5, "target_noise_db": 60.0}
+    assert StudyModel(name="x").reference == {"se_bound_lsb": 0.5, "target_noise_db": 60.0}
+    assert dict(Profile.__dataclass_fields__["ref_settings"].default) == {"se_bound_lsb": 0.5, "target_noise_db": 60.0}
+    for fn in (render_reference, ReferenceCache.get, ReferenceCache.has):
+        sig = inspect.signature(fn).parameters
+        assert (sig["se_bound_lsb"].default, sig["target_noise_db"].default) == (0.5, 60.0), fn
+
+
+def test_the_built_in_warm_ups_are_whole_jitter_periods():
+    # the warm ghosting protocol's warm-up ends where a jitter period ends (224 = 14 x 16), so its
+    # first judged frame has the same jitter phase as the cold protocol's
+    from study.config.studyfile import profile
+    for name in ("quick", "full"):
+        warm = [g for g in profile(name).ghosting if g.warmup]
+        assert warm and all(g.warmup % TAA_PERIOD == 0 for g in warm), name
+    assert [g.warmup for g in profile("quick").ghosting] == [0, 224]

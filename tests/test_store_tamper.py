@@ -100,3 +100,30 @@ def test_a_technique_in_the_users_own_file_is_keyed_by_its_source(tmp_path, monk
     mod.write_text(mod.read_text() + "# edited\n")
     os.utime(mod, ns=(os.stat(mod).st_atime_ns, os.stat(mod).st_mtime_ns + 10**9))
     assert code_token(m.MyTAA) != k1
+
+
+def test_a_crash_while_writing_an_artefact_leaves_no_done_record(tmp_path, monkeypatch):
+    # the done record is written last: a crash between two files leaves a folder the store calls
+    # incomplete (re-made), never a record naming files that were not written
+    import numpy as np
+
+    from study.engine import store as S
+    st = S.Store(tmp_path)
+    img = np.zeros((2, 3, 3), np.float32)
+    calls = []
+
+    def failing(path, channels, header=None):
+        calls.append(path)
+        if len(calls) == 2:
+            raise OSError("disk full")
+        return real(path, channels, header)
+    real = S.write_exr
+    monkeypatch.setattr(S, "write_exr", failing)
+    folder = tmp_path / "runs" / "static" / "s" / "k"
+    with pytest.raises(OSError, match="disk full"):
+        st.save_folder(folder, "k", {"frame_0001.exr": img, "frame_0002.exr": img}, {"frames": [1, 2]})
+    assert not (folder / "done.json").exists() and st.done(folder, "k") is None
+    monkeypatch.setattr(S, "write_exr", real)
+    rec = st.save_folder(folder, "k", {"frame_0001.exr": img, "frame_0002.exr": img}, {"frames": [1, 2]})
+    assert st.done(folder, "k", verify_files=True) == rec and sorted(rec["files"]) == ["frame_0001.exr",
+                                                                                       "frame_0002.exr"]

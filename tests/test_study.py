@@ -81,3 +81,41 @@ def test_ab_reports_paired_differences_and_gates(env):
     assert r.exit_code == 0 and json.loads(r.stdout)["failed"] == {}
     r = CliRunner().invoke(main, base + ["taa_baseline", "taa_improved", "--max-worse", "psnr"])
     assert r.exit_code == 2 and "METRIC=THRESHOLD" in r.output
+
+
+def test_out_folder_lists_the_report_keeps_the_user_s_files_and_refuses_a_foreign_folder(env):
+    mine = env / "mine"
+    (mine / "tables").mkdir(parents=True)
+    (mine / "tables" / "notes.md").write_text("my own notes")
+    r = CliRunner().invoke(main, ["run", "--scenes", str(env / "tiny.toml"), "--out", str(mine), "--no-agreement",
+                                  "--techniques", "No AA=noaa"])
+    assert r.exit_code == 2 and "no manifest.json" in r.output and str(mine) in r.output, r.output
+    assert sorted(p.name for p in mine.rglob("*")) == ["notes.md", "tables"]       # nothing written
+
+    _run(env, "No AA=noaa", "FXAA=fxaa")
+    out = env / "out"
+    man = json.loads((out / "manifest.json").read_text())["artefacts"]
+    assert "report.html" in man                                   # the manifest lists everything that belongs
+    import hashlib
+    assert man["report.html"]["sha256"] == hashlib.sha256((out / "report.html").read_bytes()).hexdigest()
+    fxaa = [rel for rel in man if "fxaa" in rel]
+    assert fxaa and all((out / rel).exists() for rel in fxaa)
+    (out / "tables" / "notes.md").write_text("my own notes")        # not the study's: no manifest lists it
+    s, _ = _run(env, "No AA=noaa")
+    assert not any((out / rel).exists() for rel in fxaa)         # the previous manifest's, not written again
+    assert (out / "tables" / "notes.md").read_text() == "my own notes"
+    assert s["stale_files_removed"] == len(fxaa)
+
+
+def test_a_truncated_reference_is_remade_counted_and_reported_once(env, capfd):
+    from references.exr import read_exr
+    _run(env, "No AA=noaa")
+    frame0 = [p for p in (env / "cache" / "references").rglob("*.exr") if read_exr(p)[0]["taa_frame"] == 0]
+    assert len(frame0) == 1
+    frame0[0].write_bytes(frame0[0].read_bytes()[:3000])
+    capfd.readouterr()
+    s, out = _run(env, "No AA=noaa")
+    assert s["references_rendered"] == 1, s
+    assert out.count("is corrupt") == 1 and "removing it and rendering again" in out, out
+    assert "EXR_ERR" not in capfd.readouterr().err      # the library's own lines are in the message, once
+    assert read_exr(frame0[0])[0]["taa_frame"] == 0      # re-made in place

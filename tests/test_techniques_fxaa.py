@@ -320,3 +320,15 @@ def test_nonfinite_input_is_repaired():
     out, t = fxaa(img)
     assert np.all(np.isfinite(out)) and t.last_nonfinite_count == 1
     np.testing.assert_array_equal(out, 0.5)
+
+
+def test_early_exit_is_strict_at_the_threshold():
+    # FXAA 3.11: `if (range < max(fxaaQualityEdgeThresholdMin, rangeMax * fxaaQualityEdgeThreshold))`
+    # returns the pixel unchanged. In a 0.5 field a centre of 0.4375 has range 0.0625 = 0.5 * 0.125
+    # (exact in float32): not below the threshold, so it is processed; 0.4453125 (range 0.0546875) exits.
+    for centre, exits in ((0.4375, 0), (0.4453125, 1)):
+        img = grey(np.full((7, 7), 0.5))
+        img[3, 3] = centre
+        out, t = fxaa(img, luma="green")
+        assert t.debug_terms()["early_exit"][3, 3] == exits, centre
+        assert np.array_equal(out[3, 3], img[3, 3]) == bool(exits), centre

@@ -193,3 +193,17 @@ def test_protocol_errors_and_superset_mask():
     out = t.process(still_frame(c), jitter=(0, 0), far=FAR, supersampled=ss)
     assert np.all(np.isfinite(t.history)) and np.all(out[1, 1] == F(0.5))
     assert t.last_nonfinite["supersampled"] == 1
+
+
+def test_the_reuse_test_holds_at_mu_itself():
+    # "if the inequality holds the reuse succeeds": D <= mu reuses the history, so a difference of
+    # exactly mu (0.25 = 0.75 - 0.5, exact in float32) is valid and one just above it is not
+    c = np.full((5, 5, 3), 0.5, F)
+    t = taa_impl.make("taa_sparse", sharpen="none", difference="linear_max", mu=0.25)
+    drive(t, still_frame(c), lambda fr, m: fr["color"])
+    c2 = c.copy()
+    c2[1, 1] = 0.75
+    c2[3, 3] = 0.7578125
+    _, mask, _ = drive(t, still_frame(c2))
+    assert not mask[1, 1] and mask[3, 3]
+    assert mask.sum() == 1

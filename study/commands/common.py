@@ -3,7 +3,10 @@ options and helpers of the study commands."""
 from __future__ import annotations
 
 import json
+import os
 import sys
+import tempfile
+from pathlib import Path
 
 import click
 
@@ -11,6 +14,38 @@ import click
 def _fail(msg: str) -> None:
     click.echo(f"error: {msg}", err=True)
     sys.exit(2)
+
+
+def _writable_folder(path, what: str) -> Path:
+    """`path` as a folder this process can write in (made if missing), or exit 2 saying why."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        _fail(f"{what} {path}: exists and is not a folder")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(dir=path, prefix=".taa-write-test-")
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        _fail(f"{what} {path}: cannot write there ({exc.strerror or exc})")
+    return path
+
+
+def _cache_folder() -> Path:
+    """The study cache (TAA_STUDY_CACHE or ./.cache/taa-study), checked writable."""
+    from references import default_cache_dir
+    return _writable_folder(default_cache_dir(), "the cache folder (TAA_STUDY_CACHE)")
+
+
+def _study_out(path) -> Path:
+    """A study's output folder: new, empty, or one a study wrote (it has this tool's manifest).
+    A folder of other files is refused: a study removes the files of its previous manifest that it
+    no longer writes, and must not be pointed at someone's own files."""
+    path = Path(path)
+    if path.is_dir() and any(path.iterdir()) and not (path / "manifest.json").is_file():
+        _fail(f"--out {path}: the folder holds files but no manifest.json of this tool; "
+              "give a new or empty folder, or one a study wrote")
+    return _writable_folder(path, "--out")
 
 
 def _scene_and_size(name: str, profile: str, width: int | None, height: int | None):
@@ -101,11 +136,11 @@ def _techniques(tech_list, default=()):
     labels = [c.label for c in configs]
     if len(set(labels)) != len(labels):
         _fail(f"technique labels must be unique, got {labels}")
-    try:
-        for c in configs:
+    for c in configs:
+        try:
             c.make()
-    except (TypeError, ValueError, KeyError) as exc:
-        _fail(f"bad technique parameters: {exc}")
+        except (TypeError, ValueError, KeyError) as exc:
+            _fail(f"technique {c.label!r} ({c.name}, parameters {dict(c.overrides)}): {exc}")
     return configs
 
 
@@ -131,22 +166,22 @@ def run_study(profile, names, configs, out_dir, no_agreement, executor, sweep=Tr
     """The study end to end: plan and execute its tasks (study.engine.runner), then write its tables, figures
     and report (study.reporting.report.write_study). `profile`: a Profile (study file). Returns the folder."""
     import time as _time
-    from pathlib import Path
 
     from study.config.profile import SPARSE_SWEEP
-    from study.reporting.report import write_study
     from study.engine.runner import Study
     from study.engine.tasks import TaskError
+    from study.reporting.report import write_study
 
     start = _time.perf_counter()
     _load_scenes(names)
+    out = _study_out(out_dir or profile.out or f"out/{profile.name}")
+    _cache_folder()
     study = Study(profile, executor=executor)
     sweep_cfg = SPARSE_SWEEP if sweep else ()
     try:
         res = study.run(names, configs, agreement=not no_agreement, sweep=sweep_cfg)
     except TaskError as exc:
         _fail(str(exc))
-    out = Path(out_dir or study.profile.out or f"out/{study.profile.name}")
     summary = {**res.stats, "profile": study.profile.name, "scenes": names,
                "techniques": [c.label for c in configs], "executor": executor.describe()}
     write_study(out, res, configs, summary, start)

@@ -7,7 +7,7 @@ import sys
 import click
 
 from references import settings as reference_settings
-from study.commands.common import _fail, _scene_and_size, _strict_json, main
+from study.commands.common import _cache_folder, _fail, _scene_and_size, _strict_json, _writable_folder, main
 
 
 @main.command()
@@ -81,6 +81,7 @@ def agree(scene_names, all_builtin, frame, profile, width, height, samples, targ
         _fail("name a scene with --scene NAME or use --all")
     if samples < 1:
         _fail(f"--samples must be >= 1, got {samples}")
+    _cache_folder()
     from study.engine.agreement import check_agreement
     results = []
     for name in names:
@@ -113,8 +114,6 @@ def agree(scene_names, all_builtin, frame, profile, width, height, samples, targ
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), required=True)
 def render(scene_name, frame, profile, width, height, jitter, buffers, no_reference, out_dir):
     """Write one frame's raster buffers (EXR) and its reference (EXR + display PNG)."""
-    from pathlib import Path
-
     import numpy as np
     from PIL import Image
 
@@ -130,12 +129,17 @@ def render(scene_name, frame, profile, width, height, jitter, buffers, no_refere
         _fail(f"unknown buffer(s) {bad}; available: {', '.join(BUFFERS)}")
     if not 0 <= frame < scene.desc.frames:
         _fail(f"scene {scene.name!r} has frames 0..{scene.desc.frames - 1}; --frame {frame} is out of range")
-    out = Path(out_dir)
+    out = _writable_folder(out_dir, "--out")
+    if not no_reference:
+        _cache_folder()
     r = Rasterizer(scene, w, h)
     try:
         bufs = r.render(frame, jitter, wanted)
     finally:
         r.close()
+    ref = None
+    if not no_reference:      # before any file is written: a failing reference leaves no half output
+        ref, cached = ReferenceCache().get(scene, frame, w, h)
     stem = f"{scene.name}_f{frame:04d}"
     for name, a in bufs.items():
         a = a.astype(np.float32)
@@ -143,8 +147,7 @@ def render(scene_name, frame, profile, width, height, jitter, buffers, no_refere
             {f"{name}.{'xy'[k]}": a[..., k] for k in range(a.shape[2])} if a.ndim == 3 else {name: a}
         write_exr(out / f"{stem}_{name}.exr", chans, {"taa_jitter": f"{jitter[0]} {jitter[1]}"})
     disp = None
-    if not no_reference:
-        ref, cached = ReferenceCache().get(scene, frame, w, h)
+    if ref is not None:
         write_exr(out / f"{stem}_reference.exr", {"RGB": ref.image}, {"taa_spp": ref.spp})
         disp = DisplayTransform.from_reference(ref.image)
         Image.fromarray(disp.to_8bit(ref.image)).save(out / f"{stem}_reference.png")

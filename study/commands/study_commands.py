@@ -1,13 +1,18 @@
 """The commands that run studies: `run`, `estimate`, `bench`, `ab` and `paper`."""
 from __future__ import annotations
 
+import math
 import sys
+
+from pathlib import Path
 
 import click
 
-from study.commands.common import (PROFILE_OPTION, _execution_options, _executor, _fail,
+from study.commands.common import (PROFILE_OPTION, _cache_folder, _execution_options, _executor, _fail,
                                    _load_scenes, _profile, _scene_list, _strict_json, _techniques, main,
                                    run_study)
+
+PAPER_DIR = Path(__file__).resolve().parents[2] / "paper"       # the checkout's paper/ (main.tex)
 
 
 @main.command()
@@ -57,6 +62,7 @@ def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
     _load_scenes(names)
     import tempfile
     from pathlib import Path
+    _cache_folder()
     study = Study(prof, progress=False)
     with tempfile.TemporaryDirectory() as empty:
         planner = Study(prof, cache_root=Path(empty), progress=False) if from_scratch else study
@@ -167,6 +173,7 @@ def ab(a, b, scene_list, profile, study_file, gates, as_json, workers, threads, 
     prof = _profile(study_file, profile)
     scene_list = scene_list or list(prof.scenes) or ["pipe", "sphere_ghosting"]
     _load_scenes(scene_list)
+    _cache_folder()
     limits = {}
     for g in gates:
         m, eq, v = g.partition("=")
@@ -176,12 +183,15 @@ def ab(a, b, scene_list, profile, study_file, gates, as_json, workers, threads, 
             limits[m] = float(v)
         except ValueError:
             _fail(f"--max-worse {g!r}: threshold {v!r} is not a number")
+        if not math.isfinite(limits[m]) or limits[m] < 0:
+            _fail(f"--max-worse {g!r}: the threshold must be a finite number >= 0 (how much worse B may be)")
     try:
         res = compare(ca, cb, scene_list, prof, progress=not as_json,
                       study=Study(prof, progress=not as_json, executor=_executor(workers, threads, scheduler)))
     except TaskError as exc:
         _fail(str(exc))
-    failed = {m: res.worse_by(m) for m, lim in limits.items() if res.worse_by(m) > lim}
+    # a gate with no finite pair to judge fails: it cannot say B is within the threshold
+    failed = {m: res.worse_by(m) for m, lim in limits.items() if not res.worse_by(m) <= lim}
     if as_json:
         click.echo(_strict_json({**res.as_dict(), "gates": limits, "failed": failed}))
     else:
@@ -195,7 +205,8 @@ def ab(a, b, scene_list, profile, study_file, gates, as_json, workers, threads, 
             click.echo(f"  {scene:18s} " + "; ".join(cells))
         click.echo(f"  cost: A {res.ms['a']:.2f} ms, B {res.ms['b']:.2f} ms per frame ({res.ms['diff']:+.2f} ms)")
         for m, w in failed.items():
-            click.echo(f"  GATE FAILED: B is worse than A on {m} by {w:.4g} (> {limits[m]})")
+            click.echo(f"  GATE FAILED: B is worse than A on {m} by {w:.4g} (> {limits[m]})" if math.isfinite(w)
+                       else f"  GATE FAILED: {m} has no finite pair to judge")
     if failed:
         sys.exit(1)
 
@@ -211,15 +222,13 @@ def ab(a, b, scene_list, profile, study_file, gates, as_json, workers, threads, 
 @_execution_options
 def paper(study_file, profile, scene_list, out_dir, no_pdf, workers, threads, scheduler):
     """Regenerate the study, copy its tables and figures into paper/generated/, build the PDF."""
-    from pathlib import Path
-
     from scenes import builtin_names
     from study.reporting import paper_pdf
 
     prof = _profile(study_file, profile)
     src = run_study(prof, scene_list or list(prof.scenes) or builtin_names(), _techniques((), prof.techniques),
                     out_dir, not prof.agreement, _executor(workers, threads, scheduler), sweep=prof.sweep)
-    root = Path(__file__).resolve().parent.parent / "paper"
+    root = PAPER_DIR
     got = paper_pdf.fill_generated(src, root)       # only what this study's manifest lists
     click.echo(f"paper/generated/: {len(got['tables'])} tables, {len(got['figures'])} figures")
     if no_pdf:

@@ -18,3 +18,6 @@ AGREEMENT_TARGET_NOISE_DB = _reference.TARGET_NOISE_DB
 SWEEP_SCENES = ("sphere_ghosting", "disocclusion")   # where the sparse-supersampling mu sweep runs
 GHOSTING_SKIP = ("accumulation",)              # N sub-frames per frame: too slow for sequences
 KEEP_FRAMES = "report"                         # a run keeps, once judged, the frames the report reads
+# A study file that lists no techniques compares this built-in profile's: the thesis's columns,
+# both TAAs without their sharpen, and the other source documents' techniques.
+DEFAULT_TECHNIQUES_PROFILE = "quick"

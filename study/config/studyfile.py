@@ -8,7 +8,7 @@ such files (study/config/profiles/*.toml).
     agreement = true                                 # the reference agreement figure under each table
     sweep = false                                    # sparse supersampling's mu sweep
 
-    [[techniques]]                                   # [] = the thesis's set and the other sources'
+    [[techniques]]                                   # none or [] = the default set (the quick profile's)
     label = "Uncharted"
     technique = "taa_baseline"                       # registry name, entry point or "file.py:Class"
     params = { sharpen = "normalised" }
@@ -158,6 +158,11 @@ def load_study(path: str | Path) -> Profile:
         except (ValueError, TypeError, KeyError) as exc:
             fail(f"techniques[{i}]", t.spec or t.technique, str(exc))
         configs.append(c)
+    if not configs:     # no techniques (or []): the default set, the built-in profile's
+        default = PROFILE_DIR / f"{D.DEFAULT_TECHNIQUES_PROFILE}.toml"
+        if path.resolve() == default.resolve():
+            fail("techniques", [], "the built-in default profile must list its techniques")
+        configs = list(profile(D.DEFAULT_TECHNIQUES_PROFILE).techniques)
     labels = [c.label for c in configs]
     if len(set(labels)) != len(labels):
         fail("techniques", labels, "labels must be unique")

@@ -101,7 +101,9 @@ class Study:
         costs = self._costs(scenes, statics, results)
         for spec, scene in scenes:
             w, h = self.resolution(scene)
-            out.references[scene.name] = self.reference(scene, 0, w, h)
+            ref, cached = self.cache.get(scene, 0, w, h, **self.ref_settings)
+            out.references[scene.name] = ref
+            out.stats["references_rendered"] += not cached   # a damaged file found only now, re-made
             if scene.name in plan.agreements:
                 out.agreements[scene.name] = results[plan.agreements[scene.name]]["data"]
         for t in statics:

@@ -83,6 +83,20 @@ def _write_done(folder: Path, record: dict) -> dict:
     return record
 
 
+def _dead_owner(owner: str) -> bool:
+    """The lock's owner ('host pid thread') is a process of this host that no longer exists."""
+    parts = owner.split()
+    if len(parts) != 3 or parts[0] != socket.gethostname() or not parts[1].isdigit():
+        return False
+    try:
+        os.kill(int(parts[1]), 0)
+    except ProcessLookupError:
+        return True
+    except OSError:          # exists, another user's
+        return False
+    return False
+
+
 class Store:
     """Artefacts under `root`: folders of files with a sealed done record, and sealed JSON records."""
 
@@ -196,9 +210,13 @@ class Store:
                 break
             except FileExistsError:
                 try:
-                    if time.time() - path.stat().st_mtime > stale_s:
-                        self.log(f"store: breaking the stale lock {path} ({path.read_text()!r})")
-                        path.unlink(missing_ok=True)
+                    owner = path.read_text()
+                    dead = _dead_owner(owner)
+                    if dead or time.time() - path.stat().st_mtime > stale_s:
+                        why = "its process is gone" if dead else f"no heartbeat for {stale_s:g} s"
+                        self.log(f"store: breaking the lock {path} of {owner!r}: {why}")
+                        if path.read_text() == owner:
+                            path.unlink(missing_ok=True)
                         continue
                 except FileNotFoundError:
                     continue

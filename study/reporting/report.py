@@ -3,6 +3,7 @@ table, display images, SSIM/FLIP maps and plots (Report); the summary tables (st
 summaries); the manifest; and the interactive report (write_study)."""
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 from pathlib import Path
@@ -62,7 +63,6 @@ class Report(Summaries):
                 return
             data = data()
         (write_text_atomic if isinstance(data, str) else write_bytes_atomic)(path, data)
-        import hashlib
         raw = data.encode() if isinstance(data, str) else data
         self.manifest[rel] = {"inputs": json.loads(json.dumps(inputs, default=str)),
                               "sha256": hashlib.sha256(raw).hexdigest()}
@@ -180,16 +180,27 @@ class Report(Summaries):
         return entry
 
     def finish(self, summary: dict) -> None:
+        """study.md, then the files of the previous manifest this study did not write again are
+        removed (an older run's; a file no manifest listed is the user's and stays), then the manifest."""
         self._file("study.md", "# TAA study\n\n" + "\n".join(self.markdown), {"tables": sorted(self.manifest)})
         removed = 0
-        for folder in self.FOLDERS:
-            for path in sorted((self.out / folder).rglob("*")) if (self.out / folder).exists() else []:
-                if path.is_file() and str(path.relative_to(self.out)) not in self.manifest:
-                    path.unlink()       # another study's (or an older run's) file: not this study's
-                    removed += 1
-        summary = {**summary, "stale_files_removed": removed}
+        for rel in sorted(set(self.previous) - set(self.manifest) - {"report.html"}):
+            path = self.out / rel
+            if rel.split("/")[0] in self.FOLDERS and path.is_file():
+                path.unlink()
+                removed += 1
+        self.summary = {**summary, "stale_files_removed": removed}
+        self._write_manifest()
+
+    def add(self, rel: str, data: str, inputs: dict) -> None:
+        """List a file written after finish (the HTML report, made from the finished folder)."""
+        self.manifest[rel] = {"inputs": json.loads(json.dumps(inputs, default=str)),
+                              "sha256": hashlib.sha256(data.encode()).hexdigest()}
+        self._write_manifest()
+
+    def _write_manifest(self) -> None:
         write_text_atomic(self.out / "manifest.json",
-                          json.dumps({"summary": summary, "artefacts": self.manifest}, indent=1, sort_keys=True,
+                          json.dumps({"summary": self.summary, "artefacts": self.manifest}, indent=1, sort_keys=True,
                                      default=str))
 
 
@@ -232,4 +243,5 @@ def write_study(out: Path, res, configs, summary: dict, start: float) -> None:
     for scene, agree in res.agreements.items():
         if scene in data["scenes"]:
             data["scenes"][scene]["agreement"] = agree
-    html_report.write(out, data)
+    page = html_report.write(out, data).read_text(encoding="utf-8")
+    report.add("report.html", page, {"artefacts": sorted(k for k in report.manifest if k != "report.html")})

@@ -1,0 +1,33 @@
+"""The cost model of speed against error (README "Cost"): samples shaded per pixel times the raster
+time of one sample per pixel, plus the extra samples' shading, plus the technique's own resolve."""
+import pytest
+
+from display import DisplayTransform
+from scenes import get_scene
+from study.config.techniques import TechniqueConfig
+from study.engine import costs
+from study_fixtures import moving_scene
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory):
+    path = tmp_path_factory.mktemp("scene") / "tiny.toml"
+    path.write_text(moving_scene(frames=2, size=(32, 18), segments=8))
+    return get_scene(str(path))
+
+
+def test_samples_per_pixel_and_the_total(scene):
+    import numpy as np
+    configs = [TechniqueConfig("No AA", "noaa"), TechniqueConfig("SSAA 4x", "accumulation", (("samples", 4),)),
+               TechniqueConfig("TAA", "taa_baseline"), TechniqueConfig("Sparse", "taa_sparse")]
+    disp = {0: DisplayTransform.from_reference(np.full((18, 32, 3), 0.5, np.float32))}
+    got = costs.measure(scene, 32, 18, configs, disp, {"Sparse": 0.25})
+    spp = {label: c["samples_per_pixel"] for label, c in got.items()}
+    # one centre or jittered sample for No AA and a TAA; N sub-frames for SSAA N; sparse
+    # supersampling 1 plus the extra samples per pixel its run shaded on average (0.25 here)
+    assert spp == {"No AA": 1.0, "SSAA 4x": 4.0, "TAA": 1.0, "Sparse": pytest.approx(1.0 + 0.25)}
+    for label, c in got.items():
+        n = 4 if label == "SSAA 4x" else 1
+        assert c["total_ms"] == pytest.approx(n * c["raster_ms"] + c["extra_ms"] + c["resolve_ms"], rel=1e-12)
+        assert c["raster_ms"] > 0 and c["resolve_ms"] > 0
+    assert got["Sparse"]["extra_ms"] > 0 and got["TAA"]["extra_ms"] == 0
