@@ -90,7 +90,7 @@ class Report(Summaries):
                   "metrics": {l: a["metrics_key"] for l, a in res.artefacts.items()},
                   "costs": {l: c.get("key") for l, c in res.costs.items()}}
         note = (f"{res.test}: {res.width}x{res.height}, 8-bit display images; ms / frame = raster of the samples "
-                f"shaded + resolve (study.costs). " + self._floor_note(agree))
+                f"shaded + resolve (study.engine.costs). " + self._floor_note(agree))
         table = thesis_layout(f"Static test, {res.test}: {res.scene}", results, STATIC_METRICS,
                               self.improved if self.improved in results else None, note)
         self._table(f"{stem}_{res.scene}", table, inputs)
