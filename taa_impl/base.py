@@ -150,7 +150,7 @@ def build_params(cls: type, params: Any = None, feedback: str | None = None, **o
         known = [f.name for f in dataclasses.fields(p)]
         unknown = sorted(set(overrides) - set(known))
         if unknown:
-            raise ValueError(f"unknown parameter{'s' if len(unknown) > 1 else ''} {', '.join(map(repr, unknown))} "
+            raise TypeError(f"unknown parameter{'s' if len(unknown) > 1 else ''} {', '.join(map(repr, unknown))} "
                              f"of {cls.__name__}; its parameters: {', '.join(known)}")
     return dataclasses.replace(p, **overrides) if overrides else p
 

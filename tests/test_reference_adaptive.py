@@ -120,7 +120,7 @@ def test_recorded_spp_is_the_rays_traced(monkeypatch):
     """Every ray the pilot (Mitsuba's integrator) and the rounds trace is counted, and the
     per-pixel spp recorded in the reference adds up to exactly that."""
     import references.mitsuba_scene as ms
-    import references.render as rr
+    import references.tracer as rr
     from backend import dr
     traced = []
 

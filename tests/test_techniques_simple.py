@@ -43,7 +43,7 @@ def test_registry_names_and_driving_attributes():
         taa_impl.make("smaa_typo")
     with pytest.raises(ValueError):
         taa_impl.make("accumulation", feedback="inside")   # a TAA-only preset
-    with pytest.raises(TypeError):
+    with pytest.raises(TypeError, match="unknown parameter 'k_min' of NoAAParams"):
         taa_impl.make("noaa", k_min=0.5)                  # not a field of No AA
 
 
