@@ -22,8 +22,8 @@ import numpy as np
 
 from scenes.jitter import TAA_PERIOD, halton_offset, halton_offsets
 
+from study.config.protocols import Step, step_jitters
 from study.engine.drive import FrameSource, drive
-from study.config.protocols import Step
 
 REPEATS = 5
 
@@ -54,14 +54,14 @@ def measure(scene, width: int, height: int, configs: list, displays: dict, extra
         src = FrameSource(scene, width, height, inp.buffers)
         try:
             raster_ms = median_ms(lambda: src.raster.render(0, halton_offset(3, TAA_PERIOD), src.buffers, prev_t=0))
-            drive(tech, Step(0, 0, keep=True, reset=True, prev_t=0, frame=1), src, scene, width, height,
-                  displays.get(0))   # fills the history, as the kernels expect
+            first = Step(0, 0, keep=True, reset=True, prev_t=0, frame=1)
+            drive(tech, first, src, scene, width, height, displays.get(0))   # fills the history, as the kernels expect
 
             if inp.sampling == "supersample":
-                subs = [src.frame(0, halton_offset(j, inp.subframes), 0) for j in range(inp.subframes)]
+                subs = [src.frame(0, j, 0) for j in step_jitters(first, "supersample", inp.subframes)]
                 resolve_ms = median_ms(lambda: tech.process_samples(subs))
             else:
-                jit = halton_offset(1, TAA_PERIOD) if inp.sampling == "sequence" else (0.0, 0.0)
+                (jit,) = step_jitters(Step(0, 1, keep=True, reset=False, prev_t=0, frame=2), inp.sampling)
                 frame = src.frame(0, jit, 0)
                 kw = {"far": scene.desc.camera.far}
                 if inp.display:

@@ -13,7 +13,7 @@ from raster import Rasterizer
 from scenes import ResolvedScene
 from scenes.jitter import halton_offsets
 
-from ..config.protocols import Step, frame_key, judged_steps, step_jitters
+from study.config.protocols import Step, frame_key, judged_steps, step_jitters
 
 
 class FrameSource:

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ..config.protocols import frame_key, judged_steps, step_jitters
+from study.config.protocols import frame_key, judged_steps, step_jitters
 
 
 @dataclass
@@ -80,8 +80,7 @@ def measure_units(sw: SceneWork, ref_settings: dict, cache, configs: list) -> di
     """Seconds of one unit of each kind for this scene, measured here (see the module docstring)."""
     import numpy as np
 
-    from display import DisplayTransform
-
+    from display import DisplayTransform, quantise
     from study.engine import costs as C
     from study.metrics import suite as M
     from study.engine.tasks import load_scene
@@ -98,14 +97,12 @@ def measure_units(sw: SceneWork, ref_settings: dict, cache, configs: list) -> di
         r = cache.get(scene, 0, sw.width, sw.height, **ref_settings)[0]
         d = DisplayTransform.from_reference(r.image)
         got["disp"] = d.encode(r.image)
-        got["ref8"] = np.round(got["disp"] * 255).astype(np.uint8)
+        got["ref8"] = quantise(got["disp"])
 
     memo: dict = {}
 
     def per_frame():   # after the first, FLIP's reference half comes from the memo, as in study.engine.judge
-        x_disp = disp.encode(x)
-        M.all_metrics(ref.image, got["disp"], got["ref8"], x, x_disp, np.round(x_disp * 255).astype(np.uint8),
-                      want_maps=False, memo=memo)
+        M.all_metrics(ref.image, got["disp"], got["ref8"], *disp.output(x, "linear"), want_maps=False, memo=memo)
     reference_read_s = C.median_ms(per_reference, repeats=3, warmup=1) / 1000
     metrics_s = C.median_ms(per_frame, repeats=3, warmup=1) / 1000
     # each judged frame is written by its run (and hashed) and read back by the metrics task

@@ -10,8 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from study.config.defaults import THESIS_HISTORY
-
-from study.engine.plan import SHOWN_FRAMES, shown_frames  # noqa: F401  (what the report's sliders show)
+from study.engine.plan import shown_frames  # noqa: F401  (the frames the report's sliders show)
 
 
 @dataclass

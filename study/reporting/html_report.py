@@ -209,13 +209,16 @@ def render(data: dict) -> str:
         keys_help=KEYS_HELP, script=src("report.js"), style=src("report.css"), slug=slug)
 
 
+def page(out_dir: Path, data: dict) -> str:
+    """Validate `data` against the folder it names, and render the page."""
+    return render(validate(Path(out_dir), data))
+
+
 def write(out_dir: Path, data: dict) -> Path:
     """Validate `data`, write out_dir/report.html, return its path."""
     from provenance.files import write_text_atomic
-    out_dir = Path(out_dir)
-    page = render(validate(out_dir, data))
-    target = out_dir / "report.html"
-    write_text_atomic(target, page)
+    target = Path(out_dir) / "report.html"
+    write_text_atomic(target, page(out_dir, data))
     return target
 
 

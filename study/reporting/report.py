@@ -26,7 +26,8 @@ GHOST_METRICS = ["mse", "psnr", "ssim", "flip_ldr"]
 class Report(Summaries):
     """Artefacts of one study in `out`. Every file is listed in manifest.json with the keys of its
     inputs and its SHA-256; a file whose inputs and content are unchanged is not made again, and
-    `finish` removes every file of out/{tables,images,maps,plots} that this study did not write."""
+    `finish` removes the files of out/{tables,images,maps,plots} that the previous manifest listed
+    and this study did not write again (a file no manifest listed is the user's and stays)."""
 
     FOLDERS = ("tables", "images", "maps", "plots")
 
@@ -184,7 +185,7 @@ class Report(Summaries):
         removed (an older run's; a file no manifest listed is the user's and stays), then the manifest."""
         self._file("study.md", "# TAA study\n\n" + "\n".join(self.markdown), {"tables": sorted(self.manifest)})
         removed = 0
-        for rel in sorted(set(self.previous) - set(self.manifest) - {"report.html"}):
+        for rel in sorted(set(self.previous) - set(self.manifest)):
             path = self.out / rel
             if rel.split("/")[0] in self.FOLDERS and path.is_file():
                 path.unlink()
@@ -193,9 +194,8 @@ class Report(Summaries):
         self._write_manifest()
 
     def add(self, rel: str, data: str, inputs: dict) -> None:
-        """List a file written after finish (the HTML report, made from the finished folder)."""
-        self.manifest[rel] = {"inputs": json.loads(json.dumps(inputs, default=str)),
-                              "sha256": hashlib.sha256(data.encode()).hexdigest()}
+        """Write and list a file made after finish (the HTML report, made from the finished folder)."""
+        self._file(rel, data, inputs)
         self._write_manifest()
 
     def _write_manifest(self) -> None:
@@ -243,5 +243,4 @@ def write_study(out: Path, res, configs, summary: dict, start: float) -> None:
     for scene, agree in res.agreements.items():
         if scene in data["scenes"]:
             data["scenes"][scene]["agreement"] = agree
-    page = html_report.write(out, data).read_text(encoding="utf-8")
-    report.add("report.html", page, {"artefacts": sorted(k for k in report.manifest if k != "report.html")})
+    report.add("report.html", html_report.page(out, data), {"artefacts": sorted(report.manifest)})
