@@ -6,7 +6,8 @@ resolution, the convergence settings and the source of the shading, reference an
 (the stopping rule measures noise through the display transform). Each EXR carries the image,
 the linear standard error (`stderr.R/G/B`), the display-domain standard error
 (`display_stderr.R/G/B`, 1 = full scale), the part of it that is the unseen-feature floor
-(`display_floor.R/G/B`, references/render.py) and the samples per pixel (`spp`), and its header
+(`display_floor.R/G/B`, references/render.py), the split into two independent halves
+(`half_delta.R/G/B`: half A = RGB + delta, half B = RGB - delta) and the samples per pixel (`spp`), and its header
 the bound, seconds, mean/max spp, 99.9th percentile and max SE in LSB, the pixels over the bound
 and those whose SE is the floor. Files are written atomically (references/exr.py), so an
 interrupted render leaves nothing; a file that fails to read, lacks its key or holds NaN/Inf is
@@ -75,13 +76,14 @@ class ReferenceCache:
             dse = np.stack([ch[f"display_stderr.{c}"] for c in "RGB"], -1).astype(np.float32)
             spp = ch["spp"].astype(np.int32)
             floor = np.stack([ch[f"display_floor.{c}"] for c in "RGB"], -1).astype(np.float32)
-            if img.shape != shape or not all(np.all(np.isfinite(x)) for x in (img, se, dse)):
+            half = np.stack([ch[f"half_delta.{c}"] for c in "RGB"], -1).astype(np.float32)
+            if img.shape != shape or not all(np.all(np.isfinite(x)) for x in (img, se, dse, half)):
                 raise ValueError("wrong shape or NaN/Inf pixels")
             history = [tuple(x) for x in json.loads(h.get("taa_convergence", "[]"))]
             return Reference(img, se, int(h["taa_spp"]), int(h["taa_passes"]), float(h["taa_seconds"]),
                              float(h["taa_noise_psnr_db"]), key, spp_map=spp, display_stderr=dse,
                              bound_lsb=float(h["taa_bound_lsb"]), rounds=int(h["taa_rounds"]), _history=history,
-                             display_floor=floor)
+                             display_floor=floor, half_delta=half)
         except Exception as exc:
             self.log(f"reference cache: {path} is corrupt ({exc}); removing it and rendering again")
             path.unlink(missing_ok=True)
@@ -103,6 +105,7 @@ class ReferenceCache:
             chans[f"stderr.{c}"] = ref.stderr[..., k]
             chans[f"display_stderr.{c}"] = ref.display_stderr[..., k]
             chans[f"display_floor.{c}"] = ref.display_floor[..., k]
+            chans[f"half_delta.{c}"] = ref.half_delta[..., k]
         write_exr(path, chans, header)
 
     def has(self, scene: ResolvedScene, t: int, width: int, height: int, *, se_bound_lsb=S.SE_BOUND_LSB,

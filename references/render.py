@@ -95,12 +95,20 @@ class Reference:
     bound_lsb: float = S.SE_BOUND_LSB          # the per-pixel bound it was rendered to
     rounds: int = 0                            # adaptive rounds after the pilot
     display_floor: np.ndarray | None = None    # (H, W, 3) the unseen-feature part of display_stderr
+    half_delta: np.ndarray | None = None       # (H, W, 3) linear: half A = image + delta, B = image - delta
     _history: list = field(default_factory=list, repr=False)
 
     @property
     def noise_history(self):
         """(mean spp, seconds, noise PSNR dB, max SE LSB) after each pass or round."""
         return self._history
+
+    def halves(self) -> tuple[np.ndarray, np.ndarray]:
+        """The two independent half-sample references (linear HDR) whose mean is `image`: what a
+        figure's reference uncertainty is estimated from (study.metrics.uncertainty)."""
+        if self.half_delta is None:
+            raise ReferenceError("this reference keeps no half-sample split")
+        return self.image + self.half_delta, self.image - self.half_delta
 
     @property
     def se_lsb(self) -> np.ndarray:
@@ -158,6 +166,7 @@ class _Estimates:
         self.varies = np.flatnonzero(np.any(pilot.max(axis=1) != pilot.min(axis=1), axis=-1))
         self.pilot_cov[self.varies] = _cov_of_mean(pilot[self.varies].astype(np.float64))
         self.mean, self.cov = self.pilot_mean.copy(), self.pilot_cov.copy()
+        self.pilot_half = pilot[:, :k // 2].mean(axis=1, dtype=np.float64)   # passes 0..K/2-1
         self.m = np.zeros(npix, np.int64)             # samples per replicate after the pilot
         self.slot = np.full(npix, -1, np.int64)
         self.sums = np.zeros((0, replicates, 3))
@@ -180,6 +189,15 @@ class _Estimates:
         w = (ma / (self.mp + ma))[:, None]           # the replicates' share of the samples
         self.mean[pix] = (1 - w) * self.pilot_mean[pix] + w * reps.mean(axis=1)
         self.cov[pix] = ((1 - w) ** 2)[:, :, None] * self.pilot_cov[pix] + (w ** 2)[:, :, None] * _cov_of_mean(reps)
+
+    def half_delta(self) -> np.ndarray:
+        """(npix, 3) A - mean, where A is the plain mean of one half of every pixel's samples (the
+        first K/2 pilot passes and the first R/2 replicates) and B, the other half, is 2 mean - A.
+        A and B are independent estimates of the pixel, each with twice the mean's variance."""
+        a = self.pilot_half * (self.mp / 2)
+        rows = np.flatnonzero(self.slot >= 0)
+        a[rows] += self.sums[self.slot[rows], : self.r // 2].sum(axis=1)
+        return a / (self.spp[:, None] / 2) - self.mean
 
     def linear_se(self) -> np.ndarray:
         return np.sqrt(np.maximum(np.diagonal(self.cov, axis1=1, axis2=2), 0.0))
@@ -241,9 +259,9 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
                      progress: Callable[[int, float], None] | None = None) -> Reference:
     """Reference of frame t: a pilot of `min_passes` sets of `spp_per_pass` at every pixel, then
     rounds of `replicates` independent sets per pixel that needs them (see the module docstring)."""
-    if min_passes < 2 or replicates < 2:
-        raise ReferenceError(f"min_passes and replicates must be >= 2 to estimate the noise, "
-                             f"got {min_passes}, {replicates}")
+    if min_passes < 2 or replicates < 2 or min_passes % 2 or replicates % 2:
+        raise ReferenceError(f"min_passes and replicates must be even and >= 2 (the noise is estimated "
+                             f"from them, and the reference is split into two halves), got {min_passes}, {replicates}")
     if se_bound_lsb <= 0 or spp_per_pass < 1:
         raise ReferenceError(f"se_bound_lsb must be > 0 and spp_per_pass >= 1, got {se_bound_lsb}, {spp_per_pass}")
     cam = scene.camera(t, width, height)
@@ -354,4 +372,5 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
                      int(round(spp_map.mean())), min_passes, time.perf_counter() - start, _noise_db(dse),
                      spp_map=spp_map.astype(np.int32), display_stderr=dse.reshape(height, width, 3).astype(np.float32),
                      bound_lsb=float(se_bound_lsb), rounds=rounds, _history=history,
-                     display_floor=floor_d.reshape(height, width, 3).astype(np.float32))
+                     display_floor=floor_d.reshape(height, width, 3).astype(np.float32),
+                     half_delta=est.half_delta().reshape(height, width, 3).astype(np.float32))

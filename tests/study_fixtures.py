@@ -67,12 +67,14 @@ def run_cli(args, code=0):
     return r
 
 
-def run_tiny_study(root, *techniques):
-    """A real study of the two tiny scenes under `root` (its own cache); returns its output folder."""
+def run_tiny_study(root, *techniques, precision="per_pixel"):
+    """A real study of the two tiny scenes under `root` (its own cache); returns its output folder.
+    At 40x24 no reference reaches the figures' tolerances (960 pixels), so the per-pixel rule is
+    the default here; tests/test_precision.py tests the figures' rule."""
     import pytest
     scenes = write_scenes(root)
     out = root / "out"
-    args = ["run", "--scenes", ",".join(scenes), "--no-agreement", "--out", out]
+    args = ["run", "--scenes", ",".join(scenes), "--no-agreement", "--out", out, "--precision", precision]
     for t in techniques:
         args += ["--techniques", t]
     with pytest.MonkeyPatch.context() as mp:

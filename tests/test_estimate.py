@@ -30,6 +30,8 @@ warmup = 0
 name = "ghosting_warm"
 frames = 4
 warmup = 16
+[precision]
+rule = "per_pixel"
 """
 
 
@@ -57,7 +59,7 @@ def test_units_of_a_tiny_study_by_hand_and_none_once_it_ran(tmp_path, monkeypatc
     assert (still["references"], still["raster_frames"], still["subframes"]) == (1, 17, 4)
     assert (still["technique_steps"], still["technique_frames_judged"]) == (16 + 1 + 1, 3 + 1 + 1)
 
-    run_cli(["run", path, "--out", tmp_path / "out"])
+    run_cli(["run", path, "--out", tmp_path / "out", "--precision", "per_pixel"])
     doc = json.loads(run_cli(["estimate", path, "--json"]).output)
     assert doc["tasks"] == {} and doc["scenes"] == []
     scratch = json.loads(run_cli(["estimate", path, "--json", "--from-scratch"]).output)

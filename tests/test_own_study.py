@@ -39,7 +39,7 @@ def own(tmp_path, monkeypatch):
 
 
 def test_readme_study_file_and_own_technique_run(own):
-    _invoke(["run", own / "my_study.toml"])
+    _invoke(["run", own / "my_study.toml", "--precision", "per_pixel"])
     out = own / "out" / "my_study"
     summary = json.loads((out / "manifest.json").read_text())["summary"]
     assert summary["techniques"] == ["Uncharted", "Mine"]
@@ -55,7 +55,7 @@ def test_readme_study_file_and_own_technique_run(own):
     # The widened box is a different technique; an edit of the file recomputes its runs only.
     s1 = summary
     (own / "my_taa.py").write_text((own / "my_taa.py").read_text() + "\n# an edit\n")
-    _invoke(["run", own / "my_study.toml"])
+    _invoke(["run", own / "my_study.toml", "--precision", "per_pixel"])
     s2 = json.loads((out / "manifest.json").read_text())["summary"]
     assert s1["runs_computed"] == 6 and s2["runs_computed"] == 3 and s2["runs_cached"] == 3
 

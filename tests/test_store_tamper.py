@@ -17,7 +17,7 @@ from study_fixtures import run_cli, summary, write_scenes
 def study(tmp_path, monkeypatch):
     monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))
     moving, still = write_scenes(tmp_path)
-    args = ["run", "--scenes", still, "--no-agreement", "--out", tmp_path / "out",
+    args = ["run", "--scenes", still, "--no-agreement", "--precision", "per_pixel", "--out", tmp_path / "out",
             "--techniques", "Baseline=taa_baseline", "--techniques", "FXAA=fxaa"]
     run_cli(args)
     return tmp_path, args
@@ -65,7 +65,7 @@ def test_garbage_maps_and_a_swapped_frame_are_detected_and_re_made(study):
 def test_a_subset_run_leaves_no_table_of_the_first(tmp_path, monkeypatch):
     monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))
     moving, still = write_scenes(tmp_path)
-    base = ["run", "--no-agreement", "--out", tmp_path / "out", "--techniques", "noaa"]
+    base = ["run", "--no-agreement", "--precision", "per_pixel", "--out", tmp_path / "out", "--techniques", "noaa"]
     run_cli(base + ["--scenes", f"{moving},{still}"])
     assert (tmp_path / "out" / "tables" / "ghosting_tiny_moving.md").exists()
     run_cli(base + ["--scenes", still])

@@ -19,7 +19,8 @@ def env(tmp_path, monkeypatch):
 
 
 def _run(env, *techs, extra=()):
-    args = ["run", "--scenes", str(env / "tiny.toml"), "--out", str(env / "out"), "--no-agreement"]
+    args = ["run", "--scenes", str(env / "tiny.toml"), "--out", str(env / "out"), "--no-agreement",
+            "--precision", "per_pixel"]
     for t in techs:
         args += ["--techniques", t]
     r = CliRunner().invoke(main, args + list(extra), catch_exceptions=False)
@@ -88,6 +89,7 @@ def test_out_folder_lists_the_report_keeps_the_user_s_files_and_refuses_a_foreig
     (mine / "tables").mkdir(parents=True)
     (mine / "tables" / "notes.md").write_text("my own notes")
     r = CliRunner().invoke(main, ["run", "--scenes", str(env / "tiny.toml"), "--out", str(mine), "--no-agreement",
+                                  "--precision", "per_pixel",
                                   "--techniques", "No AA=noaa"])
     assert r.exit_code == 2 and "no manifest.json" in r.output and str(mine) in r.output, r.output
     assert sorted(p.name for p in mine.rglob("*")) == ["notes.md", "tables"]       # nothing written

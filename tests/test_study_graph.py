@@ -24,7 +24,8 @@ def scenes(tmp_path):
 
 
 def _study_cmd(scenes, out, *extra):
-    return [sys.executable, "-m", "study", "run", "--scenes", ",".join(scenes), "--no-agreement", *TECHS,
+    return [sys.executable, "-m", "study", "run", "--scenes", ",".join(scenes), "--no-agreement",
+            "--precision", "per_pixel", *TECHS,
             "--out", str(out), *extra]
 
 
@@ -36,7 +37,8 @@ def _free_port() -> int:
 
 def test_local_cluster_gives_the_in_process_numbers_and_survives_a_killed_worker(tmp_path, scenes, monkeypatch):
     monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache_a"))
-    run_cli(["run", "--scenes", ",".join(scenes), "--no-agreement", *TECHS, "--out", tmp_path / "a"])
+    run_cli(["run", "--scenes", ",".join(scenes), "--no-agreement", "--precision", "per_pixel", *TECHS,
+             "--out", tmp_path / "a"])
     s_a = summary(tmp_path / "a")
     # 2 statics x 3, cold ghosting x 3, warm ghosting only the TAA: No AA and FXAA have no history,
     # so their warm runs are their cold ones (study.engine.plan.run_steps)

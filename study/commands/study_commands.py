@@ -26,11 +26,18 @@ PAPER_DIR = Path(__file__).resolve().parents[2] / "paper"       # the checkout's
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
               help="Output folder (default: the study file's, or out/<name>); it keeps only this study's files.")
 @click.option("--no-agreement", is_flag=True, help="Skip the per-scene reference agreement figure.")
+@click.option("--precision", "rule", type=click.Choice(["figures", "per_pixel"]), default=None,
+              help="References refined until every figure is within its tolerance ('figures'), or every "
+                   "reference at the [reference] per-pixel bound ('per_pixel'); default: the study file's.")
 @_execution_options
-def run(study_file, profile, scene_list, tech_list, out_dir, no_agreement, workers, threads, scheduler):
+def run(study_file, profile, scene_list, tech_list, out_dir, no_agreement, rule, workers, threads, scheduler):
     """Run a study (a study file, or a built-in profile) and write tables, maps and plots (make-style)."""
+    import dataclasses
+
     from scenes import builtin_names
     prof = _profile(study_file, profile)
+    if rule is not None:
+        prof = dataclasses.replace(prof, precision=dataclasses.replace(prof.precision, rule=rule))
     names = scene_list or list(prof.scenes) or builtin_names()
     configs = _techniques(tech_list, prof.techniques)
     run_study(prof, names, configs, out_dir, no_agreement or not prof.agreement,
@@ -77,7 +84,8 @@ def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
         if measure:
             click.echo(f"estimate: measuring {name} at {sw.width}x{sw.height} ...", err=True)
             try:
-                units = E.measure_units(sw, study.ref_settings, study.cache,
+                # at the start bound; the figures' rule may refine a scene (study.engine.precision)
+                units = E.measure_units(sw, study.settings_for(name), study.cache,
                                         [c for c in configs if c.label in sw.configs] or configs[:1])
             except TaskError as exc:
                 _fail(str(exc))

@@ -21,3 +21,9 @@ KEEP_FRAMES = "report"                         # a run keeps, once judged, the f
 # A study file that lists no techniques compares this built-in profile's: the thesis's columns,
 # both TAAs without their sharpen, and the other source documents' techniques.
 DEFAULT_TECHNIQUES_PROFILE = "quick"
+# Precision set by the figures (study.engine.precision): each figure's reference uncertainty at
+# most its tolerance (relative: MSE-like figures, 0.0023 = 0.01 dB of PSNR; relmse: the linear
+# relMSE, a fraction of it: printed to 3 significant digits, it is the secondary HDR figure), each
+# scene's references refined from the start bound by halves down to the finest.
+PRECISION = {"rule": "figures", "psnr_db": 0.01, "ssim": 1e-4, "flip": 1e-4, "relative": 0.0023, "relmse": 0.01,
+             "start_bound_lsb": 2.0, "finest_bound_lsb": 0.125}

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 from . import defaults as D
 from study.config.protocols import Protocol
+from .precision import Precision
 from .techniques import TechniqueConfig
 
 # Sparse supersampling's threshold mu against its cost (seed 002 chose 0.2 as the trade-off).
@@ -49,6 +50,7 @@ class Profile:
     thesis_history: int = THESIS_HISTORY
     keep_frames: str = D.KEEP_FRAMES      # 'report': a run keeps, once judged, the frames the report reads; 'all'
     source: str = ""
+    precision: Precision = Precision()    # how precise its references must be (study.engine.precision)
 
     @property
     def static_views(self) -> dict[str, int]:

@@ -25,7 +25,16 @@ such files (study/config/profiles/*.toml).
     warmup = 0                                       # frames at the first instant, not judged
     [reference]
     se_bound_lsb = 0.5                               # settings of references.ReferenceCache.get
-    target_noise_db = 60.0
+    target_noise_db = 60.0                           #   (under rule = "per_pixel")
+    [precision]                                      # study.engine.precision
+    rule = "figures"                                 # or "per_pixel": every reference at [reference]
+    psnr_db = 0.01                                   # each figure's reference uncertainty at most this
+    ssim = 1e-4
+    flip = 1e-4
+    relative = 0.0023                                # MSE, RMSD, temporal RMS (0.01 dB of PSNR)
+    relmse = 0.01                                    # relMSE HDR, a fraction of it
+    start_bound_lsb = 2.0                            # each scene's references from this per-pixel bound,
+    finest_bound_lsb = 0.125                         #   halved while a figure is over, down to this
 
 Relative paths (scenes, technique files, out) are relative to the study file. A bad file exits 2
 with the file, the field and the value.
@@ -40,6 +49,7 @@ from typing import Any, Literal, Union
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from . import defaults as D
+from .precision import Precision
 from .profile import Profile
 from .protocols import Protocol
 from .techniques import TechniqueConfig
@@ -95,6 +105,25 @@ class GhostingEntry(_Model):
     warmup: int = Field(D.GHOSTING_WARMUP, ge=0)
 
 
+class PrecisionEntry(_Model):
+    rule: Literal["figures", "per_pixel"] = D.PRECISION["rule"]
+    psnr_db: float = Field(D.PRECISION["psnr_db"], gt=0)
+    ssim: float = Field(D.PRECISION["ssim"], gt=0)
+    flip: float = Field(D.PRECISION["flip"], gt=0)
+    relative: float = Field(D.PRECISION["relative"], gt=0)
+    relmse: float = Field(D.PRECISION["relmse"], gt=0)
+    start_bound_lsb: float = Field(D.PRECISION["start_bound_lsb"], gt=0, le=64)
+    finest_bound_lsb: float = Field(D.PRECISION["finest_bound_lsb"], gt=0)
+
+    @field_validator("finest_bound_lsb")
+    @classmethod
+    def _finest(cls, v, info):
+        start = info.data.get("start_bound_lsb")
+        if start is not None and v > start:
+            raise ValueError(f"must be at most start_bound_lsb ({start})")
+        return v
+
+
 class ProtocolsEntry(_Model):
     static: StaticEntry = Field(default_factory=StaticEntry)
     ghosting: list[GhostingEntry] = Field(default_factory=lambda: [GhostingEntry(name="ghosting")])
@@ -114,6 +143,7 @@ class StudyModel(_Model):
     protocols: ProtocolsEntry = Field(default_factory=ProtocolsEntry)
     reference: dict[str, Any] = Field(default_factory=lambda: dict(D.REFERENCE))
     keep_frames: Literal["report", "all"] = D.KEEP_FRAMES
+    precision: PrecisionEntry = Field(default_factory=PrecisionEntry)
 
     @field_validator("resolution")
     @classmethod
@@ -195,7 +225,8 @@ def load_study(path: str | Path) -> Profile:
                    ref_settings=tuple(sorted(m.reference.items())), ghosting_techniques_skip=tuple(m.ghosting_skip),
                    sweep_scenes=tuple(m.sweep_scenes), agreement_samples=m.agreement_samples,
                    scenes=tuple(scenes), techniques=tuple(configs), out=out, agreement=m.agreement,
-                   sweep=m.sweep, thesis_history=st.thesis_history, keep_frames=m.keep_frames, source=str(path))
+                   sweep=m.sweep, thesis_history=st.thesis_history, keep_frames=m.keep_frames, source=str(path),
+                   precision=Precision(**m.precision.model_dump()))
 
 
 def profile(name: str) -> Profile:

@@ -1,7 +1,8 @@
 """The proof that the raster and the reference see the same scene (foundation issue).
 
 - agreement: mean of N jittered raster frames (Halton(2,3), period N) against the Mitsuba
-  reference, as PSNR of display images (spec section 8, before 8-bit quantisation) and as
+  reference, as PSNR of display images (spec section 8, before 8-bit quantisation; the
+  reference's noise removed with its halves, study.metrics.uncertainty) and as
   relative MSE in linear HDR, mean((x - r)^2 / (r^2 + 0.01)).
 - interior error: raster pixel centre (zero jitter) against one Mitsuba ray through the same
   point, max |difference| over pixels whose 3x3 raster object ids and light masks agree and whose
@@ -21,13 +22,14 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from display import DisplayTransform, psnr
+from display import DisplayTransform
 from raster import Rasterizer
 from references import ReferenceCache, trace_pixel_centres
 from references import settings as S
 from scenes import ResolvedScene
 from scenes.jitter import halton_offsets
 from study.engine.tasks import Context, _deterministic, _setup, load_scene
+from study.metrics.uncertainty import jackknife
 
 TARGETS = {"agreement_psnr_db": 45.0, "interior_max_abs_err": 1e-4, "reference_noise_psnr_db": 55.0}
 
@@ -57,6 +59,7 @@ class Agreement:
     reference_over_bound: int = 0
     reference_spp_max: int = 0
     visible_fraction: float = 1.0     # pixel centres that hit an object, in both renderers
+    agreement_u_db: float = 0.0       # the reference's share of agreement_psnr_db's uncertainty
 
     def meets_targets(self) -> dict[str, bool]:
         # A 'path' reference is a realism study: its gap to the direct-lit raster is reported only.
@@ -110,7 +113,12 @@ def check_agreement(scene: ResolvedScene, width: int, height: int, *, frame: int
     bar.close()
 
     disp = DisplayTransform.from_reference(ref.image)
-    agreement = psnr(disp.encode(mean), disp.encode(ref.image))
+    x = disp.encode(mean).astype(np.float64)
+    # the reference's noise removed with its two halves (study.metrics.uncertainty), as for every figure
+    figs = [{"mse": float(np.mean((x - disp.encode(r)) ** 2)) * 255.0 ** 2, "psnr": 0.0}
+            for r in (ref.image, *ref.halves())]
+    c, u = jackknife(*figs)
+    agreement, agreement_u = c["psnr"], u["psnr"]
     r = ref.image.astype(np.float64)
     rel_mse = float(np.mean((mean - r) ** 2 / (r ** 2 + 0.01)))
 
@@ -129,7 +137,7 @@ def check_agreement(scene: ResolvedScene, width: int, height: int, *, frame: int
                      transport=scene.desc.transport, reference_se_bound_lsb=ref.bound_lsb,
                      reference_se_p999_lsb=ref.se_p999_lsb, reference_se_max_lsb=ref.se_max_lsb,
                      reference_over_bound=ref.over_bound, reference_spp_max=ref.spp_max,
-                     visible_fraction=visible)
+                     visible_fraction=visible, agreement_u_db=agreement_u)
 
 
 # -- agreement of a scene -------------------------------------------------------------------------------

@@ -7,6 +7,9 @@ FLIP's reference half (its exposures and filtered planes) is computed once per r
 (study.metrics.flip's memo); a technique's frames are read one at a time. Each technique's metrics are
 still filed under their own key (its run, the references and the metric code), so a technique
 added to a study is judged alone, and a key another task already judges is left to it (study.engine.plan).
+
+Every figure is judged against the reference and against its two independent halves, and filed
+with the reference's noise removed and the uncertainty that leaves (study.metrics.uncertainty).
 """
 from __future__ import annotations
 
@@ -15,6 +18,7 @@ from pathlib import Path
 
 from study.engine.tasks import TaskError, _deterministic, _setup, load_scene
 from study.metrics import suite as M
+from study.metrics import uncertainty as U
 
 
 @_deterministic
@@ -62,13 +66,17 @@ def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict):
         for f in run["frames"]:
             by_time.setdefault(times[f], []).append((i, f))
     cache = ReferenceCache(Path(ctx.cache_root))
-    state = [{"per_frame": {}, "maps": {}, "temporal": M.TemporalInstability(), "references": {}} for _ in items]
+    halves = ("", "a", "b")                 # the reference, and its two independent halves
+    state = [{"per_frame": {}, "uncertainty": {}, "maps": {}, "references": {},
+              "temporal": {h: M.TemporalInstability() for h in halves}} for _ in items]
     for t in sorted(by_time):
         ref = cache.get(scene, t, w, h, **ref_settings)[0]
-        disp = DisplayTransform.from_reference(ref.image)
-        ref_disp = disp.encode(ref.image)
-        ref8 = quantise(ref_disp)                               # disp.to_8bit, without encoding twice
-        memo: dict = {}                                         # FLIP's reference half, for every technique
+        disp = DisplayTransform.from_reference(ref.image)      # one display transform for all three
+        lins = dict(zip(halves, (ref.image, *ref.halves())))
+        refs = {}
+        for hv, lin in lins.items():
+            d = disp.encode(lin)
+            refs[hv] = (lin, d, quantise(d), {})   # disp.to_8bit without encoding twice; FLIP's memo
         for i, f in sorted(by_time[t]):
             it, run, st = items[i], runs[i], state[i]
             try:
@@ -78,15 +86,23 @@ def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict):
                 raise TaskError(f"{exc}: the run was invalidated; run the study again to re-make it") from None
             x = np.stack([ch[c] for c in "RGB"], -1)
             x_lin, x_disp, x8 = disp.output(x, run["output_space"])
-            st["per_frame"][str(f)], maps = M.all_metrics(ref.image, ref_disp, ref8, x_lin, x_disp, x8,
-                                                          want_maps=f in it["maps_for"], memo=memo)
-            if f in it["maps_for"]:
-                st["maps"][f"maps_{f:04d}.exr"] = maps
-            st["temporal"].add(ref8, x8)
+            figs = {}
+            for hv, (lin, d, r8, memo) in refs.items():
+                keep = hv == "" and f in it["maps_for"]
+                figs[hv], maps = M.all_metrics(lin, d, r8, x_lin, x_disp, x8, want_maps=keep, memo=memo)
+                if keep:
+                    st["maps"][f"maps_{f:04d}.exr"] = maps
+                st["temporal"][hv].add(r8, x8)
+            st["per_frame"][str(f)], st["uncertainty"][str(f)] = U.jackknife(figs[""], figs["a"], figs["b"])
             st["references"][str(t)] = ref.key
     for it, st in zip(items, state):
-        temporal = st["temporal"].value() if st["temporal"].frames > 1 else None
-        data = {"per_frame": st["per_frame"], "temporal": temporal, "references": st["references"]}
+        tm = {hv: (acc.value() if acc.frames > 1 else None) for hv, acc in st["temporal"].items()}
+        temporal = temporal_u = None
+        if tm[""] is not None:
+            c, u = U.jackknife(*({"temporal": tm[hv]} for hv in halves))
+            temporal, temporal_u = c["temporal"], u["temporal"]
+        data = {"per_frame": st["per_frame"], "uncertainty": st["uncertainty"], "temporal": temporal,
+                "temporal_u": temporal_u, "references": st["references"]}
         rec = store.save_folder(Path(it["folder"]), it["key"], st["maps"], {"data": data})
         if it.get("keep") is not None:   # judged: only the frames the report shows stay (study.engine.plan)
             store.prune(Path(it["run_folder"]), it["run_key"], {f"frame_{f:04d}.exr" for f in it["keep"]})

@@ -61,6 +61,7 @@ class Test:
     reference_tasks: dict = field(default_factory=dict)  # scene time -> reference task key
     maps_for: dict = field(default_factory=dict)        # label -> frame ids whose maps are kept
     keep: dict = field(default_factory=dict)            # label -> frame ids kept once judged (None: all)
+    ref_settings: dict = field(default_factory=dict)    # its references' settings
 
 
 @dataclass
@@ -100,26 +101,33 @@ def run_steps(schedule: list, inp) -> list:
 
 
 class Planner:
-    def __init__(self, ctx: T.Context, ref_settings: dict, agreement_samples: int | None):
+    def __init__(self, ctx: T.Context, ref_settings: dict, agreement_samples: int | None,
+                 ref_settings_of: dict | None = None):
+        """`ref_settings_of`: scene name -> its references' settings where they differ from
+        `ref_settings` (the precision a scene's figures need; study.engine.precision)."""
         from study.engine.store import Store
         self.ctx, self.ref_settings, self.agreement_samples = ctx, dict(ref_settings), agreement_samples
+        self.ref_settings_of = dict(ref_settings_of or {})
         self.store = Store(Path(ctx.cache_root))
         self.plan = Plan()
         self._run_task_of: dict = {}     # run key -> key of the run task that makes it
         self._metrics_task_of: dict = {}  # metrics key -> key of the metrics task that judges it
 
+    def settings(self, scene) -> dict:
+        return dict(self.ref_settings_of.get(scene.name, self.ref_settings))
+
     # -- keys ----------------------------------------------------------------------------------------
     def reference_key(self, scene, t: int, w: int, h: int) -> str:
         return task_key("reference", {"scene": scene.content_hash, "t": t, "res": (w, h),
                                       "camera": scene.camera(t, w, h).to_world.round(12).tolist(),
-                                      "settings": self.ref_settings},
+                                      "settings": self.settings(scene)},
                         code=CODE["reference"])
 
     def _reference(self, spec: str, scene, t: int, w: int, h: int) -> str:
         key = self.reference_key(scene, t, w, h)
         if key not in self.plan.tasks:
             self.plan.tasks[key] = Task(key, "reference", R.reference_task,
-                                        (self.ctx, spec, t, w, h, self.ref_settings))
+                                        (self.ctx, spec, t, w, h, self.settings(scene)))
         return key
 
     # -- tests -----------------------------------------------------------------------------------------
@@ -134,7 +142,7 @@ class Planner:
         if keep not in ("all", "maps", "shown", "none"):
             raise ValueError(f"keep must be 'all', 'maps', 'shown' or 'none', not {keep!r}")
         schedule = protocol.schedule(scene)
-        test = Test(scene.name, spec, protocol, list(configs), w, h)
+        test = Test(scene.name, spec, protocol, list(configs), w, h, ref_settings=self.settings(scene))
         kept_t = sorted({s.t for s in schedule if s.keep})
         ref_keys = {t: self.reference_key(scene, t, w, h) for t in kept_t}
         missing = []
@@ -186,7 +194,7 @@ class Planner:
                 rkey = task_key("runs", sorted(test.run_keys[c.label] for c in need_run))
                 self.plan.tasks[rkey] = Task(rkey, "run", RT.run_task, (
                     self.ctx, spec, w, h, protocol, need_run, {c.label: test.run_keys[c.label] for c in need_run},
-                    {c.label: test.run_folders[c.label] for c in need_run}, self.ref_settings), rdeps)
+                    {c.label: test.run_folders[c.label] for c in need_run}, self.settings(scene)), rdeps)
                 run_dep = (rkey,)
                 self._run_task_of.update({test.run_keys[c.label]: rkey for c in need_run})
             # one metrics task judges the test's missing techniques together (study.engine.judge); a
@@ -202,7 +210,7 @@ class Planner:
                           "key": test.metrics_keys[c.label], "folder": test.metrics_folders[c.label]} for c in mine]
                 gkey = task_key("metrics-of", sorted(it["key"] for it in items))
                 self.plan.tasks[gkey] = Task(gkey, "metrics", J.metrics_task,
-                                             (self.ctx, spec, w, h, items, self.ref_settings), deps)
+                                             (self.ctx, spec, w, h, items, self.settings(scene)), deps)
                 self._metrics_task_of.update({it["key"]: gkey for it in items})
         self.plan.tests.append(test)
         return test
@@ -226,5 +234,5 @@ class Planner:
             self.plan.cached[key] = {"kind": "agreement", "key": key, "data": data, "computed": False}
             return
         self.plan.tasks[key] = Task(key, "agreement", A.agreement_task, (
-            self.ctx, spec, w, h, self.agreement_samples, self.ref_settings, key, str(path)),
+            self.ctx, spec, w, h, self.agreement_samples, self.settings(scene), key, str(path)),
             (self._reference(spec, scene, 0, w, h),))

@@ -30,6 +30,11 @@ class TestResult:
     height: int = 0
     kind: str = "static"
     checkpoints: dict[str, dict[int, dict]] = field(default_factory=dict)   # static: label -> n -> metrics
+    # label -> frame id -> metric -> the reference's share of the figure's uncertainty
+    # (study.metrics.uncertainty); the figures in per_frame have the reference's bias removed
+    uncertainty: dict[str, dict[int, dict]] = field(default_factory=dict)
+    temporal_u: dict[str, float] = field(default_factory=dict)
+    reference_bound_lsb: float = 0.0           # the per-pixel bound its references were refined to
 
 
 @dataclass
@@ -44,6 +49,10 @@ class StudyResults:
     artefacts: "Artefacts | None" = None                # the pixels behind the figures
     reference: object = None                           # (scene name, t, w, h) -> Reference
     thesis_history: int = THESIS_HISTORY
+    # scene -> {"bound_lsb": its references' final per-pixel bound, "over": [figures still over their
+    # tolerance there], "rounds": bounds tried} (study.engine.precision)
+    precision: dict = field(default_factory=dict)
+    tolerances: dict = field(default_factory=dict)
 
 
 
@@ -77,10 +86,12 @@ def view(full: TestResult, label: str, n: int) -> TestResult:
     with history, the single judged frame for those without)."""
     v = TestResult(full.scene, label, [n], {}, dict(full.ms), temporal=dict(full.temporal),
                    stats={}, reference_keys=full.reference_keys, costs=full.costs, width=full.width,
-                   height=full.height, kind="static")
+                   height=full.height, kind="static", temporal_u=dict(full.temporal_u),
+                   reference_bound_lsb=full.reference_bound_lsb)
     for l, per in full.per_frame.items():
         f = n if n in per else max(per)
         v.per_frame[l] = {n: per[f]}
+        v.uncertainty[l] = {n: full.uncertainty.get(l, {}).get(f, {})}
         v.artefacts[l] = {**full.artefacts[l], "frame": f}
         if l in full.stats and f in full.stats[l]:
             v.stats[l] = {n: full.stats[l][f]}

@@ -20,6 +20,7 @@ from study.config.profile import Profile, get_profile
 from study.config.techniques import TechniqueConfig
 from study.engine.execute import Executor, execute
 from study.engine.plan import Planner
+from study.engine.precision import Precision, over_tolerance
 from study.engine.results import Artefacts, StudyResults, TestResult, view
 from study.engine.tasks import Context, _deterministic, load_scene
 
@@ -39,13 +40,19 @@ class Study:
         self.executor = executor
         self.ctx = Context(str(self.cache.root), executor.threads)
         self.ref_settings = dict(self.profile.ref_settings)
+        self.precision: Precision = self.profile.precision
+        self.levels: dict[str, int] = {}          # scene name -> its precision level (study.engine.precision)
+
+    def settings_for(self, name: str) -> dict:
+        """The reference settings of a scene's references at its current precision level."""
+        return self.precision.settings(self.ref_settings, self.levels.get(name, 0))
 
     def resolution(self, scene: ResolvedScene) -> tuple[int, int]:
         r = self.profile.resolution
         return tuple(r) if isinstance(r, (tuple, list)) else scene.resolution(r)
 
     def reference(self, scene: ResolvedScene, t: int, w: int, h: int):
-        return self.cache.get(scene, t, w, h, **self.ref_settings)[0]
+        return self.cache.get(scene, t, w, h, **self.settings_for(scene.name))[0]
 
     def _reference_of(self, scenes):
         """scene name, t, w, h -> its Reference (the reporting's way to a reference's pixels)."""
@@ -56,8 +63,9 @@ class Study:
     def plan(self, specs: list[str], configs: list[TechniqueConfig], agreement: bool = True,
              sweep: tuple = (), ghosting: bool = True):
         """The study's tests and the tasks it must compute: (plan, scenes, statics, ghosts, sweeps)."""
-        planner = Planner(self.ctx, self.ref_settings, self.profile.agreement_samples if agreement else None)
         scenes = [(spec, load_scene(spec)) for spec in specs]
+        planner = Planner(self.ctx, self.ref_settings, self.profile.agreement_samples if agreement else None,
+                          {scene.name: self.settings_for(scene.name) for _, scene in scenes})
         statics, ghosts, sweeps = [], [], []
         for spec, scene in scenes:
             w, h = self.resolution(scene)
@@ -80,28 +88,62 @@ class Study:
 
     def run(self, specs: list[str], configs: list[TechniqueConfig], agreement: bool = True,
             sweep: tuple = (), ghosting: bool = True) -> StudyResults:
-        plan, scenes, statics, ghosts, sweeps = self.plan(specs, configs, agreement, sweep, ghosting)
-        counts = plan.counts()
-        if plan.tasks:
-            self.log(f"study: {len(plan.tasks)} tasks to compute ({', '.join(f'{k} {n}' for k, n in sorted(counts.items()))})"
-                     f", {len(plan.cached)} complete; executor: {self.executor.describe()}")
-        results = execute(plan, self.executor, self.progress, self.log)
-        for key in [k for k, v in results.items() if "records" in v]:   # a metrics task: its records by key
-            for mkey, rec in results.pop(key)["records"].items():
-                results[mkey] = {"kind": "metrics", "key": mkey, **rec}
+        """Plan, execute and gather; under the figures' precision rule, again for every scene with a
+        figure over its tolerance, its references at half the bound, until none is or the finest
+        bound is reached (study.engine.precision)."""
+        rounds, tried, over = [], {}, {}
+        while True:
+            plan, scenes, statics, ghosts, sweeps = self.plan(specs, configs, agreement, sweep, ghosting)
+            for _, scene in scenes:
+                b, seen = self.settings_for(scene.name).get("se_bound_lsb"), tried.setdefault(scene.name, [])
+                if not seen or seen[-1] != b:
+                    seen.append(b)
+            counts = plan.counts()
+            if plan.tasks:
+                self.log(f"study: {len(plan.tasks)} tasks to compute ({', '.join(f'{k} {n}' for k, n in sorted(counts.items()))})"
+                         f", {len(plan.cached)} complete; executor: {self.executor.describe()}")
+            results = execute(plan, self.executor, self.progress, self.log)
+            for key in [k for k, v in results.items() if "records" in v]:   # a metrics task: its records by key
+                for mkey, rec in results.pop(key)["records"].items():
+                    results[mkey] = {"kind": "metrics", "key": mkey, **rec}
+            rounds.append((counts, results))
+            if self.precision.rule != "figures":
+                break
+            over: dict = {}
+            for t in statics + ghosts + sweeps:
+                for item in over_tolerance(self._result(t, results, {}), self.precision.tolerances):
+                    over.setdefault(t.scene, []).append((t.protocol.name, *item))
+            finer = [s for s in over if self.levels.get(s, 0) < self.precision.levels()]
+            for s in sorted(over):
+                label, tech, f, m, u, tol = max(over[s], key=lambda x: x[4] / x[5] if x[5] else math.inf)
+                b = self.settings_for(s)["se_bound_lsb"]
+                self.log(f"precision: {s}: {len(over[s])} figures over their tolerance at {b:g} LSB, the worst "
+                         f"{m} of {tech} ({label}, frame {f}) +-{u:.3g} > {tol:.3g}; "
+                         + (f"references again at {b / 2:g} LSB" if s in finer else "the finest bound: reported"))
+            if not finer:
+                break
+            for s in finer:
+                self.levels[s] = self.levels.get(s, 0) + 1
+        results = {k: v for _, r in rounds for k, v in r.items()}
+        counts: dict = {}
+        for c, _ in rounds:
+            for k, n in c.items():
+                counts[k] = counts.get(k, 0) + n
 
         out = StudyResults(artefacts=Artefacts(self.cache.root), reference=self._reference_of(scenes),
-                           thesis_history=self.profile.thesis_history)
+                           thesis_history=self.profile.thesis_history, tolerances=self.precision.tolerances)
+        out.precision = {name: {"bound_lsb": self.settings_for(name).get("se_bound_lsb"), "rule": self.precision.rule,
+                                "over": over.get(name, []), "rounds": tried[name]} for name in tried}
         out.stats = {"runs_computed": sum(len([r for r in v["runs"].values() if r["computed"]])
                                           for v in results.values() if v["kind"] == "run"),
                      "metrics_computed": sum(1 for v in results.values() if v["kind"] == "metrics" and v["computed"]),
                      "references_rendered": sum(1 for v in results.values() if v["kind"] == "reference" and v["rendered"]),
                      "tasks": counts}
-        out.stats["runs_cached"] = sum(len(t.configs) for t in statics + ghosts + sweeps) - out.stats["runs_computed"]
+        out.stats["runs_cached"] = max(0, sum(len(t.configs) for t in statics + ghosts + sweeps) - out.stats["runs_computed"])
         costs = self._costs(scenes, statics, results)
         for spec, scene in scenes:
             w, h = self.resolution(scene)
-            ref, cached = self.cache.get(scene, 0, w, h, **self.ref_settings)
+            ref, cached = self.cache.get(scene, 0, w, h, **self.settings_for(scene.name))
             out.references[scene.name] = ref
             out.stats["references_rendered"] += not cached   # a damaged file found only now, re-made
             if scene.name in plan.agreements:
@@ -124,7 +166,7 @@ class Study:
     def _result(self, test, results: dict, costs: dict) -> TestResult:
         recs = self._records(test)
         res = TestResult(test.scene, test.protocol.name, [], {}, {}, width=test.width, height=test.height,
-                         kind=test.protocol.kind,
+                         kind=test.protocol.kind, reference_bound_lsb=test.ref_settings.get("se_bound_lsb", 0.0),
                          reference_keys={t: k for t, k in test.reference_tasks.items()})
         frames = set()
         for c in test.configs:
@@ -133,6 +175,8 @@ class Study:
                 res.recomputed.append(c.label)
             per = {int(f): v for f, v in m["data"]["per_frame"].items()}
             res.per_frame[c.label] = per
+            res.uncertainty[c.label] = {int(f): v for f, v in m["data"]["uncertainty"].items()}
+            res.temporal_u[c.label] = m["data"].get("temporal_u")
             frames |= set(per)
             t = m["data"].get("temporal")
             res.temporal[c.label] = math.nan if t is None else t

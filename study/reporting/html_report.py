@@ -46,6 +46,7 @@ import re
 from pathlib import Path
 
 from study.reporting.encode import slug
+from study.reporting.tables import technique_columns
 
 TABLE_ORDER = ("headline", "reproduction", "history_convergence", "speed_error")
 KEYS_HELP = [
@@ -287,7 +288,7 @@ def collect(out_dir: Path) -> dict:
             if not (have(table) and have(ref)):
                 continue
             header, rows = _read_csv(out_dir / table)
-            labels = header[1:-2]
+            labels = technique_columns(header)
             techniques = {}
             for li, label in enumerate(labels, start=1):
                 base = f"{stem}_{scene}_{slug(label)}"
@@ -366,7 +367,7 @@ def _links(stem: str, header: list[str], rows: list[list[str]], images_of: dict,
         for pstem in ("static_converged", "static"):      # static_<scene> and static_converged_<scene>
             scene = stem[len(pstem) + 1:] if stem.startswith(pstem + "_") else None
             if scene in scenes:
-                for c, label in enumerate(header[1:-2], start=1):
+                for c, label in enumerate(technique_columns(header), start=1):
                     for r, row in enumerate(rows):
                         # the SSIM and FLIP rows open the maps behind them, the others the image
                         kind = "ssim" if row[0] == "SSIM" else "flip" if row[0].startswith("FLIP") else None

@@ -13,6 +13,7 @@ Only files the study's manifest lists are taken, so a folder shared with another
 """
 from __future__ import annotations
 
+import csv
 import json
 import re
 import shutil
@@ -20,6 +21,8 @@ import subprocess
 from pathlib import Path
 
 import numpy as np
+
+from study.reporting.tables import technique_columns
 
 TABLE_ORDER = ("headline", "reproduction", "history_convergence", "speed_error")
 
@@ -58,7 +61,7 @@ def _comparison(src: Path, listed: dict, stem: str, scene: str) -> bytes | None:
     prefix = f"images/{stem}_{scene}_"
     images, errors = {}, {}
     csv_path = src / "tables" / f"{stem}_{scene}.csv"
-    labels = csv_path.read_text().splitlines()[0].split(",")[1:-2] if csv_path.exists() else []
+    labels = technique_columns(next(csv.reader([csv_path.read_text().splitlines()[0]]))) if csv_path.exists() else []
     from study.reporting.encode import slug
     for label in labels:
         rel = f"{prefix}{slug(label)}.png"

@@ -16,7 +16,8 @@ from study.engine.results import shown_frames
 from study.reporting import plots
 from study.reporting.encode import display_8bit, exr_bytes, magma, png, slug
 from study.reporting.summaries import Summaries
-from study.reporting.tables import METRIC_LABELS, Table, fmt, thesis_layout
+from study.metrics.uncertainty import pooled
+from study.reporting.tables import METRIC_LABELS, UNCERTAINTY_NOTE, Table, fmt, fmt_u, thesis_layout
 from study.reporting.thesis import THESIS_COLUMNS
 
 STATIC_METRICS = ["mse", "rmsd", "psnr", "snr", "ssim", "flip_ldr", "flip_hdr", "relmse_hdr", "ms"]
@@ -82,6 +83,11 @@ class Report(Summaries):
                 f"{agree['agreement_psnr_db']:.1f} dB; reference noise {agree['reference_noise_psnr_db']:.1f} dB "
                 f"at {agree['reference_spp']} spp")
 
+    @staticmethod
+    def _precision_note(res) -> str:
+        return (f" References refined to {res.reference_bound_lsb:g} LSB per pixel (study.engine.precision). "
+                + UNCERTAINTY_NOTE)
+
     # -- static ------------------------------------------------------------------------------
     def static(self, res, agree: dict | None, ref, stem: str) -> None:
         """One static protocol's table, display images and maps (res: a view of the static run)."""
@@ -91,9 +97,10 @@ class Report(Summaries):
                   "metrics": {l: a["metrics_key"] for l, a in res.artefacts.items()},
                   "costs": {l: c.get("key") for l, c in res.costs.items()}}
         note = (f"{res.test}: {res.width}x{res.height}, 8-bit display images; ms / frame = raster of the samples "
-                f"shaded + resolve (study.engine.costs). " + self._floor_note(agree))
+                f"shaded + resolve (study.engine.costs). " + self._floor_note(agree) + self._precision_note(res))
+        us = {l: res.uncertainty.get(l, {}).get(n, {}) for l in res.per_frame}
         table = thesis_layout(f"Static test, {res.test}: {res.scene}", results, STATIC_METRICS,
-                              self.improved if self.improved in results else None, note)
+                              self.improved if self.improved in results else None, note, uncertainty=us)
         self._table(f"{stem}_{res.scene}", table, inputs)
         disp = DisplayTransform.from_reference(ref.image)
         self._file(f"images/{stem}_{res.scene}_reference.png", lambda: png(disp.to_8bit(ref.image)),
@@ -123,10 +130,14 @@ class Report(Summaries):
     # -- ghosting ----------------------------------------------------------------------------
     def ghosting(self, res, agree: dict | None, stem: str = "ghosting") -> None:
         labels = list(res.per_frame)
-        header = ["metric", "statistic"] + labels
+        header = ["metric", "statistic"] + labels + ["± reference"]
         rows = []
+
+        def u_of(l, t, m):
+            return res.uncertainty.get(l, {}).get(t, {}).get(m)
+
         for m in GHOST_METRICS:
-            stats = {}
+            stats, us = {}, {"best": [], "worst": [], "mean": []}
             for l in labels:
                 series = {t: res.per_frame[l][t][m] for t in res.frames}
                 finite = {t: v for t, v in series.items() if v is not None and not math.isnan(v)}
@@ -134,13 +145,21 @@ class Report(Summaries):
                 best, worst = order[0], order[-1]
                 mean = float(np.mean([min(v, 1e9) for v in finite.values()]))
                 stats[l] = (finite[best], best, finite[worst], worst, mean)
-            rows.append([METRIC_LABELS[m], "best (frame)"] + [f"{fmt(m, s[0])} ({s[1]})" for s in stats.values()])
-            rows.append(["", "worst (frame)"] + [f"{fmt(m, s[2])} ({s[3]})" for s in stats.values()])
-            rows.append(["", "mean"] + [fmt(m, s[4]) for s in stats.values()])
-        rows.append([METRIC_LABELS["temporal"], "sequence"] + [fmt("temporal", res.temporal[l]) for l in labels])
-        rows.append([METRIC_LABELS["ms"], "median"] + [fmt("ms", res.ms[l]) for l in labels])
+                us["best"].append(u_of(l, best, m))
+                us["worst"].append(u_of(l, worst, m))
+                us["mean"].append(pooled([u_of(l, t, m) for t in finite]))
+            row_u = {k: max((u for u in v if u is not None), default=None) for k, v in us.items()}
+            rows.append([METRIC_LABELS[m], "best (frame)"] + [f"{fmt(m, s[0], row_u['best'])} ({s[1]})"
+                                                             for s in stats.values()] + [fmt_u(row_u["best"])])
+            rows.append(["", "worst (frame)"] + [f"{fmt(m, s[2], row_u['worst'])} ({s[3]})"
+                                                 for s in stats.values()] + [fmt_u(row_u["worst"])])
+            rows.append(["", "mean"] + [fmt(m, s[4], row_u["mean"]) for s in stats.values()] + [fmt_u(row_u["mean"])])
+        tu = max((u for u in (res.temporal_u.get(l) for l in labels) if u is not None), default=None)
+        rows.append([METRIC_LABELS["temporal"], "sequence"] + [fmt("temporal", res.temporal[l], tu) for l in labels]
+                    + [fmt_u(tu)])
+        rows.append([METRIC_LABELS["ms"], "median"] + [fmt("ms", res.ms[l]) for l in labels] + ["–"])
         note = (f"{res.test}: {len(res.frames)} frames at {res.width}x{res.height}, each against its own reference. "
-                + self._floor_note(agree))
+                + self._floor_note(agree) + self._precision_note(res))
         inputs = {"runs": {l: a["run_key"] for l, a in res.artefacts.items()},
                   "references": list(res.reference_keys.values())}
         self._table(f"{stem}_{res.scene}", Table(f"Ghosting test, {res.test}: {res.scene}", header, rows, note), inputs)
@@ -179,6 +198,39 @@ class Report(Summaries):
                 "images": imgs,
                 "metrics": {m: [res.per_frame[label][t].get(m) for t in frames] for m in GHOST_METRICS}}
         return entry
+
+    # -- precision ---------------------------------------------------------------------------
+    def precision(self, res) -> None:
+        """figures.json (every figure with its reference uncertainty) and the precision table: per
+        scene the bounds its references were refined through and the figures still over tolerance."""
+        tests = [("static", r) for r in res.statics] + [(p, g) for p, gs in res.ghosts.items() for g in gs] \
+            + [("sweep", s) for s in res.sweeps]
+        doc = {"tolerances": res.tolerances, "precision": res.precision, "tests": [
+            {"scene": r.scene, "protocol": p, "width": r.width, "height": r.height,
+             "reference_bound_lsb": r.reference_bound_lsb,
+             "techniques": {l: {"frames": {str(f): {"figures": v, "uncertainty": r.uncertainty.get(l, {}).get(f, {})}
+                                           for f, v in per.items()},
+                                "temporal": r.temporal.get(l), "temporal_u": r.temporal_u.get(l)}
+                            for l, per in r.per_frame.items()}} for p, r in tests]}
+        inputs = {"metrics": sorted({a["metrics_key"] for _, r in tests for a in r.artefacts.values()}),
+                  "precision": res.precision}
+        self._file("tables/figures.json", json.dumps(doc, indent=1, sort_keys=True, default=str), inputs)
+        if not res.precision:
+            return
+        rows = []
+        for scene, p in sorted(res.precision.items()):
+            ref = res.references.get(scene)
+            worst = max(p["over"], key=lambda x: x[4] / x[5] if x[5] else math.inf) if p["over"] else None
+            rows.append([scene, p["rule"], " → ".join(f"{b:g}" for b in p["rounds"]), f"{p['bound_lsb']:g}",
+                         str(ref.spp) if ref is not None else "–", str(len(p["over"])),
+                         "–" if worst is None else f"{worst[3]} of {worst[1]} ±{worst[4]:.2g} > {worst[5]:.2g}"])
+        tol = ", ".join(f"{k} {v:g}" for k, v in sorted(res.tolerances.items()))
+        note = ("Each scene's references start at a coarse per-pixel bound and are refined by halves while any "
+                "figure's reference uncertainty exceeds its tolerance (" + tol + "; relative and relmse as "
+                "fractions of the figure). spp: frame 0's mean samples per pixel at the final bound.")
+        self._table("reference_precision", Table("Reference precision: bounds set by the figures",
+                                                 ["scene", "rule", "bounds tried (LSB)", "final (LSB)", "spp",
+                                                  "figures over", "worst"], rows, note), inputs)
 
     def finish(self, summary: dict) -> None:
         """study.md, then the files of the previous manifest this study did not write again are
@@ -230,6 +282,7 @@ def write_study(out: Path, res, configs, summary: dict, start: float) -> None:
     report.history_convergence(res.statics, res.thesis_history)
     report.sparse_cost(converged + [g for gs in res.ghosts.values() for g in gs])
     report.convergence(res.references)
+    report.precision(res)
     ghost_views = {}
     for pname, results in list(res.ghosts.items())[:1]:      # the first (the thesis's) ghosting protocol
         for g in results:

@@ -7,6 +7,7 @@ import io
 import math
 
 from study.metrics.suite import better
+from study.metrics.uncertainty import decimals
 
 METRIC_LABELS = {"mse": "MSE", "rmsd": "RMSD", "psnr": "PSNR (dB)", "snr": "SNR (dB)", "ssim": "SSIM",
                  "flip_ldr": "FLIP LDR", "flip_hdr": "FLIP HDR", "relmse_hdr": "relMSE HDR", "ms": "ms / frame",
@@ -15,13 +16,30 @@ DIGITS = {"mse": 3, "rmsd": 3, "psnr": 3, "snr": 3, "ssim": 4, "flip_ldr": 4, "f
           "ms": 2, "temporal": 3}
 
 
-def fmt(metric: str, v) -> str:
+def fmt(metric: str, v, u: float | None = None) -> str:
+    """A figure, to the digits its uncertainty u supports when given (study.metrics.uncertainty)."""
     if v is None or (isinstance(v, float) and math.isnan(v)):
         return "–"
     if isinstance(v, float) and math.isinf(v):
         return "∞"
     d = DIGITS.get(metric, 4)
-    return f"{v:.{d}e}" if metric == "relmse_hdr" else f"{v:.{d}f}"
+    if metric == "relmse_hdr":
+        if u is not None and u > 0 and v != 0:   # significant digits: to the first of u
+            d = max(0, min(d, math.floor(math.log10(abs(v))) - math.floor(math.log10(u))))
+        return f"{v:.{d}e}"
+    return f"{v:.{d}f}" if u is None else f"{v:.{decimals(metric, u, d)}f}"
+
+
+def fmt_u(u: float | None) -> str:
+    """An uncertainty, to one significant digit."""
+    if u is None or (isinstance(u, float) and math.isnan(u)):
+        return "–"
+    return "0" if u == 0 else f"{u:.1g}"
+
+
+UNCERTAINTY_NOTE = ("Figures are judged against the reference with its own noise removed (the jackknife over its "
+                    "two independent halves, study.metrics.uncertainty); ± reference is the largest uncertainty "
+                    "that removal leaves in the row (about 2 standard deviations), and each row is printed to it.")
 
 
 class Table:
@@ -66,13 +84,25 @@ class Table:
         return "\n".join(out) + "\n"
 
 
+def technique_columns(header: list[str]) -> list[str]:
+    """The technique labels of a thesis-layout table's header: between 'metric' and 'best'."""
+    return header[1:header.index("best")] if "best" in header else header[1:]
+
+
 def thesis_layout(title: str, results: dict[str, dict], metrics: list[str], improved: str | None,
-                  note: str = "") -> Table:
-    """results: technique label -> {metric: value}. Best column = label of the best technique."""
+                  note: str = "", uncertainty: dict[str, dict] | None = None) -> Table:
+    """results: technique label -> {metric: value}. Best column = label of the best technique.
+    `uncertainty`: label -> {metric: the reference's share of its uncertainty}: a '± reference'
+    column (the row's largest) and rows printed to it."""
     labels = list(results)
     header = ["metric"] + labels + ["best", f"{improved} vs best" if improved else "–"]
+    if uncertainty is not None:
+        header.append("± reference")
     rows = []
     for m in metrics:
+        us = [uncertainty.get(l, {}).get(m) for l in labels] if uncertainty is not None else []
+        us = [u for u in us if u is not None and not math.isnan(u)]
+        u_row = max(us) if us else None
         vals = {l: results[l].get(m) for l in labels}
         present = {l: v for l, v in vals.items() if v is not None and not (isinstance(v, float) and math.isnan(v))}
         best = None
@@ -88,5 +118,8 @@ def thesis_layout(title: str, results: dict[str, dict], metrics: list[str], impr
             else:
                 a, b = present[improved], present[best]
                 cmp = "∞" if math.isinf(a - b) else f"{a - b:+.{DIGITS.get(m, 4)}g}"
-        rows.append([METRIC_LABELS.get(m, m)] + [fmt(m, vals[l]) for l in labels] + [best or "–", cmp])
+        row = [METRIC_LABELS.get(m, m)] + [fmt(m, vals[l], u_row) for l in labels] + [best or "–", cmp]
+        if uncertainty is not None:
+            row.append(fmt_u(u_row) if m != "ms" else "–")
+        rows.append(row)
     return Table(title, header, rows, note)

@@ -1,0 +1,36 @@
+"""The precision rule's settings (a study file's [precision]; study.engine.precision applies them).
+Their defaults: study.config.defaults.PRECISION."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from . import defaults as D
+
+
+@dataclass(frozen=True)
+class Precision:
+    rule: str = D.PRECISION["rule"]                       # 'figures' | 'per_pixel'
+    psnr_db: float = D.PRECISION["psnr_db"]               # PSNR and SNR, dB
+    ssim: float = D.PRECISION["ssim"]                     # SSIM and volume SSIM
+    flip: float = D.PRECISION["flip"]                     # FLIP LDR and HDR
+    relative: float = D.PRECISION["relative"]             # MSE, RMSD, temporal RMS: a fraction
+    relmse: float = D.PRECISION["relmse"]                 # relMSE HDR: a fraction
+    start_bound_lsb: float = D.PRECISION["start_bound_lsb"]
+    finest_bound_lsb: float = D.PRECISION["finest_bound_lsb"]
+
+    @property
+    def tolerances(self) -> dict:
+        return {"psnr_db": self.psnr_db, "ssim": self.ssim, "flip": self.flip, "relative": self.relative,
+                "relmse": self.relmse}
+
+    def levels(self) -> int:
+        """How many times a scene's bound can be halved from the start."""
+        return max(0, int(math.floor(math.log2(self.start_bound_lsb / self.finest_bound_lsb) + 1e-9)))
+
+    def settings(self, base: dict, level: int) -> dict:
+        """A scene's reference settings at a level. The mean-noise target is the per-pixel rule's;
+        under the figures' rule the figures decide."""
+        if self.rule == "per_pixel":
+            return dict(base)
+        return {**base, "se_bound_lsb": self.start_bound_lsb / 2 ** level, "target_noise_db": 0.0}

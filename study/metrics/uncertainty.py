@@ -1,0 +1,93 @@
+"""How much a reference's own noise moves a figure, from the reference's two independent halves.
+
+A reference is the mean of M samples per pixel; its halves A and B (references.render: half of
+every pixel's samples each, so each has twice the mean's variance) are independent estimates of
+the same image. For any metric f judged against a reference with noise of variance v, to first
+order in the noise
+    f(ref) = f0 + g.e + c v       (g.e: a random term of mean 0; c v: a bias, e.g. + mean(sigma^2) for MSE)
+so f(A) and f(B) carry twice the bias, and
+    f0 ~ 2 f(ref) - (f(A) + f(B)) / 2          the jackknife: the bias removed
+    |f(A) - f(B)| ~ 2 sd(g.e)                   the random part left, as about two standard deviations.
+Nothing here assumes what f is: every figure (MSE, PSNR, SNR, SSIM, volume SSIM, FLIP LDR/HDR,
+relMSE, the temporal RMS) is computed in full against all three images, 8-bit quantisation of
+the display images included, so the estimate covers it. MSE-derived figures (RMSD, PSNR) are
+derived from the corrected MSE rather than corrected on their own, so they stay consistent.
+
+A figure that is a mean over frames (each frame against its own, independent reference) keeps
+the mean of the corrected values, and its uncertainty is the per-frame ones added in quadrature
+over n (`pooled`); one frame's is a single draw of |f(A) - f(B)|, about 2 sd on average but with
+a spread of its own, which is why a study refines to a tolerance with a margin (study.engine.precision).
+"""
+from __future__ import annotations
+
+import math
+
+# Each figure's tolerance key: the tolerance that bounds its uncertainty (study.config.defaults).
+TOLERANCE_OF = {"psnr": "psnr_db", "snr": "psnr_db", "ssim": "ssim", "ssim_volume": "ssim", "flip_ldr": "flip",
+                "flip_hdr": "flip", "mse": "relative", "rmsd": "relative", "relmse_hdr": "relmse",
+                "temporal": "relative"}
+_DERIVED = ("rmsd", "psnr")
+
+
+def _finite(*xs) -> bool:
+    return all(x is not None and math.isfinite(x) for x in xs)
+
+
+def jackknife(full: dict, a: dict, b: dict) -> tuple[dict, dict]:
+    """(corrected figures, their uncertainty) of one frame, from the figures judged against the
+    reference and against its halves A and B. A figure that is None stays None; one that is
+    infinite against any of the three (an exact match) is kept as judged, with no uncertainty."""
+    out, u = {}, {}
+    for k, f in full.items():
+        fa, fb = a.get(k), b.get(k)
+        if k in _DERIVED:
+            continue
+        if f is None or fa is None or fb is None:
+            out[k], u[k] = f, None
+        elif not _finite(f, fa, fb):
+            out[k], u[k] = f, 0.0
+        else:
+            out[k], u[k] = 2 * f - (fa + fb) / 2, abs(fa - fb)
+    if "mse" in out and out["mse"] is not None and "psnr" in full:
+        m = max(out["mse"], 0.0)              # an unbiased estimate can fall below 0; MSE cannot
+        out["mse"] = m
+        out["rmsd"], u["rmsd"] = math.sqrt(m), (u["mse"] / (2 * math.sqrt(m)) if m > 0 else 0.0)
+        out["psnr"] = math.inf if m == 0 else 10 * math.log10(255.0 ** 2 / m)
+        u["psnr"] = 0.0 if m == 0 else 10 / math.log(10) * u["mse"] / m
+    return out, u
+
+
+def pooled(us: list) -> float | None:
+    """The uncertainty of a mean over frames of figures with independent uncertainties us."""
+    if not us or any(x is None for x in us):
+        return None
+    return math.sqrt(sum(x * x for x in us)) / len(us)
+
+
+def tolerance(metric: str, value: float | None, tolerances: dict) -> float | None:
+    """The absolute tolerance on a figure: `relative` (MSE, RMSD, temporal RMS) and `relmse` figures
+    a fraction of the value, the others an absolute one (dB for PSNR and SNR)."""
+    key = TOLERANCE_OF.get(metric)
+    if key is None or key not in tolerances:
+        return None
+    if key in ("relative", "relmse"):
+        return None if value is None or not math.isfinite(value) else tolerances[key] * abs(value)
+    return tolerances[key]
+
+
+def over_tolerance(figures: dict, us: dict, tolerances: dict) -> dict:
+    """metric -> u / tolerance for every figure whose uncertainty exceeds its tolerance."""
+    out = {}
+    for k, u in us.items():
+        tol = tolerance(k, figures.get(k), tolerances)
+        if u is not None and tol is not None and u > tol:
+            out[k] = u / tol if tol > 0 else math.inf
+    return out
+
+
+def decimals(metric: str, u: float | None, most: int) -> int:
+    """Decimals a figure with uncertainty u supports: to the first significant digit of u, at most
+    `most` (the table's layout), at least 0."""
+    if u is None or not math.isfinite(u) or u <= 0:
+        return most
+    return max(0, min(most, math.floor(-math.log10(u))))

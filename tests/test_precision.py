@@ -1,0 +1,152 @@
+"""Each figure's reference uncertainty (study.metrics.uncertainty), the references' halves it is
+estimated from (references.render), and precision set by the figures (study.engine.precision)."""
+import json
+import math
+
+import numpy as np
+import pytest
+
+from study.config.precision import Precision
+from study.metrics import uncertainty as U
+
+
+def _mse(t, r):
+    return {"mse": float(np.mean((t - r) ** 2)), "psnr": 0.0}
+
+
+def test_jackknife_removes_the_mse_bias_of_a_noisy_reference():
+    """MSE against a reference with noise variance v is biased by mean(v); the jackknife over two
+    independent halves removes it, and |f(A) - f(B)| is about 2 sd of what is left."""
+    rng = np.random.default_rng(1)
+    n = 400_000
+    mu = rng.uniform(0, 255, n)
+    t = mu + rng.normal(0, 3.0, n)                         # a technique: MSE 9 against the truth
+    sd_half = rng.uniform(0.5, 4.0, n) * math.sqrt(2)      # each half: twice the full's variance
+    a, b = mu + rng.normal(0, 1, n) * sd_half, mu + rng.normal(0, 1, n) * sd_half
+    full = (a + b) / 2
+    truth = float(np.mean((t - mu) ** 2))
+    f = _mse(t, full)
+    bias = float(np.mean(sd_half ** 2 / 2))
+    assert f["mse"] - truth == pytest.approx(bias, rel=0.05)        # the plain figure is biased
+    c, u = U.jackknife(f, _mse(t, a), _mse(t, b))
+    sd = 2 * math.sqrt(np.sum((t - mu) ** 2 * sd_half ** 2 / 2)) / n   # sd of the -2 mean(d e) term
+    assert abs(c["mse"] - truth) < 4 * sd < 0.05 * bias
+    assert 0.02 * sd < u["mse"] < 8 * sd
+    assert c["psnr"] == pytest.approx(10 * math.log10(255 ** 2 / c["mse"]))
+    assert c["rmsd"] == pytest.approx(math.sqrt(c["mse"]))
+    assert u["psnr"] == pytest.approx(10 / math.log(10) * u["mse"] / c["mse"])
+
+
+def test_jackknife_edge_cases():
+    c, u = U.jackknife({"mse": 0.0, "psnr": math.inf, "ssim": 1.0, "flip_hdr": None},
+                       {"mse": 0.5, "psnr": 51.0, "ssim": 0.99, "flip_hdr": None},
+                       {"mse": 0.1, "psnr": 58.1, "ssim": 0.999, "flip_hdr": None})
+    assert c["mse"] == 0.0 and c["psnr"] == math.inf and u["psnr"] == 0.0    # MSE never below 0
+    assert c["flip_hdr"] is None and u["flip_hdr"] is None                  # undefined stays undefined
+    assert c["ssim"] == pytest.approx(2 - (0.99 + 0.999) / 2) and u["ssim"] == pytest.approx(0.009)
+
+
+def test_pooled_tolerance_and_digits():
+    assert U.pooled([0.3, 0.4]) == pytest.approx(0.25)
+    assert U.pooled([0.1, None]) is None
+    tol = Precision().tolerances
+    assert U.tolerance("psnr", 40.0, tol) == 0.01
+    assert U.tolerance("mse", 10.0, tol) == pytest.approx(0.023)
+    assert U.tolerance("relmse_hdr", 1e-3, tol) == pytest.approx(1e-5)
+    assert U.over_tolerance({"psnr": 40.0, "ssim": 0.99}, {"psnr": 0.02, "ssim": 5e-5}, tol) == {"psnr": 2.0}
+    assert U.decimals("psnr", 0.004, 3) == 2 and U.decimals("psnr", 0.04, 3) == 1
+    assert U.decimals("mse", 7.0, 3) == 0 and U.decimals("psnr", None, 3) == 3
+    from study.reporting.tables import fmt
+    assert fmt("psnr", 42.1234, 0.004) == "42.12" and fmt("psnr", 42.1234) == "42.123"
+    assert fmt("relmse_hdr", 1.23456e-4, 2e-6) == "1.23e-04"
+
+
+def test_precision_levels_and_settings():
+    p = Precision(start_bound_lsb=2.0, finest_bound_lsb=0.125)
+    assert p.levels() == 4
+    base = {"se_bound_lsb": 0.5, "target_noise_db": 60.0}
+    assert p.settings(base, 2) == {"se_bound_lsb": 0.5, "target_noise_db": 0.0}
+    assert Precision(rule="per_pixel").settings(base, 3) == base
+
+
+def test_reference_halves_are_independent_halves_of_its_samples():
+    from references.render import render_reference
+    from study.engine.tasks import load_scene
+    ref = render_reference(load_scene("pipe"), 0, 64, 36, se_bound_lsb=1.0, target_noise_db=0)
+    a, b = ref.halves()
+    assert np.abs((a + b) / 2 - ref.image).max() < 1e-6
+    noisy = ref.stderr > 1e-6
+    z = ref.half_delta[noisy] / ref.stderr[noisy]
+    # (A - B) / 2 has the mean's variance; the reported SE is conservative (it includes the floor)
+    assert 0.1 < float(np.mean(z ** 2)) < 1.2
+    assert np.all(ref.half_delta[~noisy] == 0)
+
+
+STUDY = """
+name = "eq_{rule}"
+scenes = ["pipe", "hairball_lit", "text_wall"]
+resolution = [96, 54]
+agreement = false
+out = "{out}"
+[[techniques]]
+spec = "No AA=noaa"
+[[techniques]]
+spec = "Improved=taa_improved"
+[[techniques]]
+label = "SSAA 4x"
+technique = "accumulation"
+params = {{ samples = 4 }}
+[protocols.static]
+history = 8
+checkpoints = [8]
+thesis_history = 8
+[protocols]
+ghosting = []
+[precision]
+rule = "{rule}"
+psnr_db = 0.05
+ssim = 5e-4
+flip = 5e-4
+relative = 0.0115
+relmse = 0.05
+"""
+
+
+def _figures(tmp_path, rule):
+    from study_fixtures import run_cli
+    out = tmp_path / rule
+    path = tmp_path / f"{rule}.toml"
+    path.write_text(STUDY.format(rule=rule, out=out))
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))
+        run_cli(["run", path])
+    return json.loads((out / "tables" / "figures.json").read_text())
+
+
+def test_figures_rule_matches_per_pixel_references_on_three_scenes(tmp_path):
+    """At the figures' tolerances every figure lies within its tolerance (plus the 0.5-LSB
+    figure's own uncertainty) of the figure judged against 0.5-LSB references, no ranking
+    changes, and the references are coarser where the figures allow."""
+    new, old = _figures(tmp_path, "figures"), _figures(tmp_path, "per_pixel")
+    tol = new["tolerances"]
+    assert set(new["precision"]) == {"pipe", "hairball_lit", "text_wall"}
+    assert all(not p["over"] for p in new["precision"].values())
+    assert any(p["bound_lsb"] > 0.5 for p in new["precision"].values())   # samples saved somewhere
+    checked = 0
+    for tn, to in zip(new["tests"], old["tests"]):
+        assert (tn["scene"], tn["protocol"]) == (to["scene"], to["protocol"])
+        for label, tech in tn["techniques"].items():
+            for f, fr in tech["frames"].items():
+                ofr = to["techniques"][label]["frames"][f]
+                for m, v in fr["figures"].items():
+                    t = U.tolerance(m, v, tol)
+                    if v is None or t is None or not math.isfinite(v):
+                        continue
+                    assert abs(v - ofr["figures"][m]) <= t + ofr["uncertainty"][m] + 1e-12, (tn["scene"], label, m)
+                    checked += 1
+        for m in ("psnr", "ssim", "flip_ldr"):
+            def order(t):
+                vals = {l: next(iter(x["frames"].values()))["figures"][m] for l, x in t["techniques"].items()}
+                return sorted(vals, key=vals.get)
+            assert order(tn) == order(to), (tn["scene"], m)
+    assert checked >= 3 * 3 * 6
