@@ -112,6 +112,7 @@ REKEYS = {
     "study/metrics/ssim.py": {"metrics"},
     "study/metrics/flip.py": {"metrics"},
     "study/metrics/filters.py": {"metrics"},
+    "study/metrics/uncertainty.py": {"metrics", "agreement"},   # both remove the reference's bias with it
     "study/engine/judge.py": {"metrics"},
     "study/engine/drive.py": {"run", "cost"},         # costs time the driver's steps
     "study/engine/run_task.py": {"run"},

@@ -20,7 +20,7 @@ from study.config.profile import Profile, get_profile
 from study.config.techniques import TechniqueConfig
 from study.engine.execute import Executor, execute
 from study.engine.plan import Planner
-from study.engine.precision import Precision, over_tolerance
+from study.engine.precision import Precision, drift, figures_of, over_tolerance
 from study.engine.results import Artefacts, StudyResults, TestResult, view
 from study.engine.tasks import Context, _deterministic, load_scene
 
@@ -42,6 +42,7 @@ class Study:
         self.ref_settings = dict(self.profile.ref_settings)
         self.precision: Precision = self.profile.precision
         self.levels: dict[str, int] = {}          # scene name -> its precision level (study.engine.precision)
+        self.drifts: dict = {}
 
     def settings_for(self, name: str) -> dict:
         """The reference settings of a scene's references at its current precision level."""
@@ -91,7 +92,8 @@ class Study:
         """Plan, execute and gather; under the figures' precision rule, again for every scene with a
         figure over its tolerance, its references at half the bound, until none is or the finest
         bound is reached (study.engine.precision)."""
-        rounds, tried, over = [], {}, {}
+        rounds, tried, over, before, refined = [], {}, {}, {}, set()
+        self.drifts = {}              # scene -> (protocol, label, frame, metric) -> change from the coarser bound
         while True:
             plan, scenes, statics, ghosts, sweeps = self.plan(specs, configs, agreement, sweep, ghosting)
             for _, scene in scenes:
@@ -109,14 +111,30 @@ class Study:
             rounds.append((counts, results))
             if self.precision.rule != "figures":
                 break
-            over: dict = {}
+            over, now = {}, {}
             for t in statics + ghosts + sweeps:
-                for item in over_tolerance(self._result(t, results, {}), self.precision.tolerances):
+                r = self._result(t, results, {})
+                for item in over_tolerance(r, self.precision.tolerances):
                     over.setdefault(t.scene, []).append((t.protocol.name, *item))
+                now.setdefault(t.scene, {}).update({(t.protocol.name, *k): v for k, v in figures_of(r).items()})
+            for s in now:
+                if s in refined:     # what both halves share: the change from the coarser bound
+                    change, moved = drift(now[s], before[s], self.precision.tolerances)
+                    self.drifts[s] = change
+                    if moved:
+                        over.setdefault(s, []).extend(moved)
+                elif s not in before and self.levels.get(s, 0) < self.precision.levels():
+                    over.setdefault(s, [])          # a first bound: compare it with the next
             finer = [s for s in over if self.levels.get(s, 0) < self.precision.levels()]
+            refined = set(finer)
+            before.update({s: now[s] for s in finer})
             for s in sorted(over):
-                label, tech, f, m, u, tol = max(over[s], key=lambda x: x[4] / x[5] if x[5] else math.inf)
                 b = self.settings_for(s)["se_bound_lsb"]
+                if not over[s] and s in finer:
+                    self.log(f"precision: {s}: every figure within its tolerance at {b:g} LSB; "
+                             f"references again at {b / 2:g} LSB to measure what the halves cannot see")
+                    continue
+                label, tech, f, m, u, tol = max(over[s], key=lambda x: x[4] / x[5] if x[5] else math.inf)
                 self.log(f"precision: {s}: {len(over[s])} figures over their tolerance at {b:g} LSB, the worst "
                          f"{m} of {tech} ({label}, frame {f}) +-{u:.3g} > {tol:.3g}; "
                          + (f"references again at {b / 2:g} LSB" if s in finer else "the finest bound: reported"))
@@ -149,14 +167,26 @@ class Study:
             if scene.name in plan.agreements:
                 out.agreements[scene.name] = results[plan.agreements[scene.name]]["data"]
         for t in statics:
-            full = self._result(t, results, costs)
+            full = self._with_drift(self._result(t, results, costs))
             out.statics.append(full)
             for label, n in self.profile.static_views.items():
                 out.views.setdefault(label, []).append(view(full, label, n))
         for t in ghosts:
-            out.ghosts.setdefault(t.protocol.name, []).append(self._result(t, results, costs))
-        out.sweeps = [self._result(t, results, costs) for t in sweeps]
+            out.ghosts.setdefault(t.protocol.name, []).append(self._with_drift(self._result(t, results, costs)))
+        out.sweeps = [self._with_drift(self._result(t, results, costs)) for t in sweeps]
         return out
+
+    def _with_drift(self, res: TestResult) -> TestResult:
+        """A figure's stated uncertainty: its halves' plus its change from the coarser bound."""
+        change = self.drifts.get(res.scene, {})
+        if not change:
+            return res
+        res.uncertainty = {label: {f: {m: u + change.get((res.test, label, f, m), 0.0) if u is not None else None
+                                       for m, u in us.items()} for f, us in per.items()}
+                           for label, per in res.uncertainty.items()}
+        res.temporal_u = {label: u + change.get((res.test, label, None, "temporal"), 0.0) if u is not None else None
+                          for label, u in res.temporal_u.items()}
+        return res
 
     def _records(self, test):
         from study.engine.store import Store
