@@ -4,10 +4,12 @@ import functools
 import json
 import math
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
+from study.metrics import uncertainty as U
 from study_fixtures import write_scenes
 from test_estimate import STUDY
 
@@ -57,14 +59,22 @@ def test_one_metrics_task_per_test_reads_each_reference_once_and_agrees_with_jud
             refs = {f: study.reference(study_scene(scenes[0]), f if test.kind == "ghosting" else 0,
                                        test.width, test.height) for f in images}
             disp = {t: DisplayTransform.from_reference(r.image) for t, r in refs.items()}
-            ref8 = {t: disp[t].to_8bit(refs[t].image) for t in refs}
-            want, _ = M.judge_run(images, run["output_space"], refs, disp, ref8, sorted(images))
+            # against the reference and its two halves (the judge removes the reference's bias with them)
+            by_half = []
+            for h in range(3):
+                imgs = {t: SimpleNamespace(image=(r.image, *r.halves())[h]) for t, r in refs.items()}
+                ref8 = {t: disp[t].to_8bit(imgs[t].image) for t in imgs}
+                by_half.append(M.judge_run(images, run["output_space"], imgs, disp, ref8, sorted(images))[0])
             for f in images:
-                for k, v in want["per_frame"][str(f)].items():
+                want, want_u = U.jackknife(*(b["per_frame"][str(f)] for b in by_half))
+                for k, v in want.items():
                     got = test.per_frame[label][f][k]
                     assert (got is None and v is None) or got == pytest.approx(v, rel=1e-12, abs=1e-12), (proto, label, f, k)
+                    gu = test.uncertainty[label][f][k]
+                    assert (gu is None and want_u[k] is None) or gu == pytest.approx(want_u[k], rel=1e-9, abs=1e-12)
             if len(images) > 1:
-                assert test.temporal[label] == pytest.approx(want["temporal"], rel=1e-12)
+                want_t, _ = U.jackknife(*({"temporal": b["temporal"]} for b in by_half))
+                assert test.temporal[label] == pytest.approx(want_t["temporal"], rel=1e-12)
                 assert math.isfinite(test.temporal[label]) and test.temporal[label] > 0
 
 

@@ -26,4 +26,4 @@ DEFAULT_TECHNIQUES_PROFILE = "quick"
 # relMSE, a fraction of it: printed to 3 significant digits, it is the secondary HDR figure), each
 # scene's references refined from the start bound by halves down to the finest.
 PRECISION = {"rule": "figures", "psnr_db": 0.01, "ssim": 1e-4, "flip": 1e-4, "relative": 0.0023, "relmse": 0.01,
-             "start_bound_lsb": 2.0, "finest_bound_lsb": 0.125}
+             "start_bound_lsb": 1.0, "finest_bound_lsb": 0.125}

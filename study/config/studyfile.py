@@ -33,7 +33,7 @@ such files (study/config/profiles/*.toml).
     flip = 1e-4
     relative = 0.0023                                # MSE, RMSD, temporal RMS (0.01 dB of PSNR)
     relmse = 0.01                                    # relMSE HDR, a fraction of it
-    start_bound_lsb = 2.0                            # each scene's references from this per-pixel bound,
+    start_bound_lsb = 1.0                            # each scene's references from this per-pixel bound,
     finest_bound_lsb = 0.125                         #   halved while a figure is over, down to this
 
 Relative paths (scenes, technique files, out) are relative to the study file. A bad file exits 2

@@ -10,7 +10,7 @@ from scipy import stats
 
 import backend
 from study.reporting import plots
-from study.reporting.tables import Table, fmt
+from study.reporting.tables import Table, fmt, fmt_u
 from study.reporting.thesis import (THESIS_COLUMNS, THESIS_GHOST_FRAMES, THESIS_GHOST_MSE, THESIS_STATIC_PSNR,
                                     THESIS_STATIC_SSIM)
 
@@ -43,12 +43,16 @@ class Summaries:
                 n = r.frames[-1]
                 psnr = {l: r.per_frame[l][n]["psnr"] for l in labels if l in r.per_frame}
                 ssim = {l: r.per_frame[l][n]["ssim"] for l in labels if l in r.per_frame}
-                rows.append([r.scene, vlabel] + [f"{fmt('psnr', psnr.get(l))} / {fmt('ssim', ssim.get(l))}"
-                                                  for l in labels] + [max(psnr, key=psnr.get)])
+                us = {m: max((u for l in labels for u in [r.uncertainty.get(l, {}).get(n, {}).get(m)] if u is not None),
+                             default=None) for m in ("psnr", "ssim")}
+                rows.append([r.scene, vlabel] + [f"{fmt('psnr', psnr.get(l), us['psnr'])} / "
+                                                  f"{fmt('ssim', ssim.get(l), us['ssim'])}" for l in labels]
+                            + [max(psnr, key=psnr.get), f"{fmt_u(us['psnr'])} / {fmt_u(us['ssim'])}"])
         self._table("headline", Table("Static test, PSNR (dB) / SSIM on 8-bit display images",
-                                      ["scene", "protocol"] + labels + ["best PSNR"], rows,
+                                      ["scene", "protocol"] + labels + ["best PSNR", "± reference"], rows,
                                       "Techniques without history (No AA, FXAA, SMAA, SSAA) give the same image "
-                                      "under both protocols."),
+                                      "under both protocols. ± reference: the row's largest reference uncertainty "
+                                      "(study.metrics.uncertainty); each row is printed to it."),
                     {"scenes": [r.scene for r in first], "protocols": list(views)})
 
     def reproduction(self, views: dict, ghosts: dict) -> None:
