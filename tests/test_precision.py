@@ -109,6 +109,7 @@ ssim = 5e-4
 flip = 5e-4
 relative = 0.0115
 relmse = 0.05
+start_bound_lsb = 2.0
 """
 
 

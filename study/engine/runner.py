@@ -14,6 +14,7 @@ from pathlib import Path
 
 from provenance import task_key
 from references import ReferenceCache
+from references.settings import SE_BOUND_LSB
 from scenes import ResolvedScene
 
 from study.config.profile import Profile, get_profile
@@ -47,6 +48,11 @@ class Study:
     def settings_for(self, name: str) -> dict:
         """The reference settings of a scene's references at its current precision level."""
         return self.precision.settings(self.ref_settings, self.levels.get(name, 0))
+
+    def bound_of(self, name: str) -> float:
+        """The per-pixel bound a scene's references are rendered to now (a study file may leave it
+        to the cache's default)."""
+        return self.settings_for(name).get("se_bound_lsb", SE_BOUND_LSB)
 
     def resolution(self, scene: ResolvedScene) -> tuple[int, int]:
         r = self.profile.resolution
@@ -97,7 +103,7 @@ class Study:
         while True:
             plan, scenes, statics, ghosts, sweeps = self.plan(specs, configs, agreement, sweep, ghosting)
             for _, scene in scenes:
-                b, seen = self.settings_for(scene.name).get("se_bound_lsb"), tried.setdefault(scene.name, [])
+                b, seen = self.bound_of(scene.name), tried.setdefault(scene.name, [])
                 if not seen or seen[-1] != b:
                     seen.append(b)
             counts = plan.counts()
@@ -129,7 +135,7 @@ class Study:
             refined = set(finer)
             before.update({s: now[s] for s in finer})
             for s in sorted(over):
-                b = self.settings_for(s)["se_bound_lsb"]
+                b = self.bound_of(s)
                 if not over[s] and s in finer:
                     self.log(f"precision: {s}: every figure within its tolerance at {b:g} LSB; "
                              f"references again at {b / 2:g} LSB to measure what the halves cannot see")
@@ -150,7 +156,7 @@ class Study:
 
         out = StudyResults(artefacts=Artefacts(self.cache.root), reference=self._reference_of(scenes),
                            thesis_history=self.profile.thesis_history, tolerances=self.precision.tolerances)
-        out.precision = {name: {"bound_lsb": self.settings_for(name).get("se_bound_lsb"), "rule": self.precision.rule,
+        out.precision = {name: {"bound_lsb": self.bound_of(name), "rule": self.precision.rule,
                                 "over": over.get(name, []), "rounds": tried[name]} for name in tried}
         out.stats = {"runs_computed": sum(len([r for r in v["runs"].values() if r["computed"]])
                                           for v in results.values() if v["kind"] == "run"),
@@ -196,7 +202,7 @@ class Study:
     def _result(self, test, results: dict, costs: dict) -> TestResult:
         recs = self._records(test)
         res = TestResult(test.scene, test.protocol.name, [], {}, {}, width=test.width, height=test.height,
-                         kind=test.protocol.kind, reference_bound_lsb=test.ref_settings.get("se_bound_lsb", 0.0),
+                         kind=test.protocol.kind, reference_bound_lsb=test.ref_settings.get("se_bound_lsb", SE_BOUND_LSB),
                          reference_keys={t: k for t, k in test.reference_tasks.items()})
         frames = set()
         for c in test.configs:
