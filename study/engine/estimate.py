@@ -93,16 +93,20 @@ def measure_units(sw: SceneWork, ref_settings: dict, cache, configs: list) -> di
     x = (ref.image * (1 + 0.05 * np.random.default_rng(0).standard_normal(ref.image.shape))).astype(np.float32)
     got = {}
 
-    def per_reference():       # as study.engine.judge: from the cache (now a read)
+    def per_reference():       # as study.engine.judge: from the cache (now a read), the reference and its halves
         r = cache.get(scene, 0, sw.width, sw.height, **ref_settings)[0]
         d = DisplayTransform.from_reference(r.image)
-        got["disp"] = d.encode(r.image)
-        got["ref8"] = quantise(got["disp"])
+        got["refs"] = []
+        for lin in (r.image, *r.halves()):
+            e = d.encode(lin)
+            got["refs"].append((lin, e, quantise(e)))
 
-    memo: dict = {}
+    memos: list = [{}, {}, {}]
 
-    def per_frame():   # after the first, FLIP's reference half comes from the memo, as in study.engine.judge
-        M.all_metrics(ref.image, got["disp"], got["ref8"], *disp.output(x, "linear"), want_maps=False, memo=memo)
+    def per_frame():   # judged against all three; after the first, FLIP's reference half comes from the memo
+        out = disp.output(x, "linear")
+        for (lin, e, r8), memo in zip(got["refs"], memos):
+            M.all_metrics(lin, e, r8, *out, want_maps=False, memo=memo)
     reference_read_s = C.median_ms(per_reference, repeats=3, warmup=1) / 1000
     metrics_s = C.median_ms(per_frame, repeats=3, warmup=1) / 1000
     # each judged frame is written by its run (and hashed) and read back by the metrics task
