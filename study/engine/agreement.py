@@ -115,8 +115,7 @@ def check_agreement(scene: ResolvedScene, width: int, height: int, *, frame: int
     disp = DisplayTransform.from_reference(ref.image)
     x = disp.encode(mean).astype(np.float64)
     # the reference's noise removed with its two halves (study.metrics.uncertainty), as for every figure
-    figs = [{"mse": float(np.mean((x - disp.encode(r)) ** 2)) * 255.0 ** 2, "psnr": 0.0}
-            for r in (ref.image, *ref.halves())]
+    figs = [{"mse": float(np.mean((x - disp.encode(r)) ** 2)) * 255.0 ** 2} for r in (ref.image, *ref.halves())]
     c, u = jackknife(*figs)
     agreement, agreement_u = c["psnr"], u["psnr"]
     r = ref.image.astype(np.float64)

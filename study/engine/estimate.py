@@ -80,9 +80,10 @@ def measure_units(sw: SceneWork, ref_settings: dict, cache, configs: list) -> di
     """Seconds of one unit of each kind for this scene, measured here (see the module docstring)."""
     import numpy as np
 
-    from display import DisplayTransform, quantise
+    from display import DisplayTransform
     from study.engine import costs as C
     from study.metrics import suite as M
+    from study.engine.judge import judged_references
     from study.engine.tasks import load_scene
     scene = load_scene(sw.spec)
     ref, cached = cache.get(scene, 0, sw.width, sw.height, **ref_settings)
@@ -96,10 +97,7 @@ def measure_units(sw: SceneWork, ref_settings: dict, cache, configs: list) -> di
     def per_reference():       # as study.engine.judge: from the cache (now a read), the reference and its halves
         r = cache.get(scene, 0, sw.width, sw.height, **ref_settings)[0]
         d = DisplayTransform.from_reference(r.image)
-        got["refs"] = []
-        for lin in (r.image, *r.halves()):
-            e = d.encode(lin)
-            got["refs"].append((lin, e, quantise(e)))
+        got["refs"] = list(judged_references(r, d).values())
 
     memos: list = [{}, {}, {}]
 

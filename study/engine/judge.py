@@ -21,6 +21,20 @@ from study.metrics import suite as M
 from study.metrics import uncertainty as U
 
 
+HALVES = ("", "a", "b")                 # the reference, and its two independent halves
+
+
+def judged_references(ref, disp) -> dict:
+    """What every technique frame is judged against: for the reference and each of its halves,
+    (linear, display-encoded, 8-bit) under the one display transform `disp`."""
+    from display import quantise
+    out = {}
+    for hv, lin in zip(HALVES, (ref.image, *ref.halves())):
+        d = disp.encode(lin)
+        out[hv] = (lin, d, quantise(d))            # disp.to_8bit, without encoding twice
+    return out
+
+
 @_deterministic
 def metrics_task(ctx, scene_spec: str, w: int, h: int, items: list, ref_settings: dict, deps=()) -> dict:
     """items: one per technique, {run_folder, run_key, frame_times (frame id -> scene time),
@@ -48,7 +62,7 @@ def metrics_task(ctx, scene_spec: str, w: int, h: int, items: list, ref_settings
 def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict):
     import numpy as np
 
-    from display import DisplayTransform, quantise
+    from display import DisplayTransform
     from references import ReferenceCache
 
     from study.engine.store import TamperError
@@ -66,17 +80,12 @@ def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict):
         for f in run["frames"]:
             by_time.setdefault(times[f], []).append((i, f))
     cache = ReferenceCache(Path(ctx.cache_root))
-    halves = ("", "a", "b")                 # the reference, and its two independent halves
     state = [{"per_frame": {}, "uncertainty": {}, "maps": {}, "references": {},
-              "temporal": {h: M.TemporalInstability() for h in halves}} for _ in items]
+              "temporal": {h: M.TemporalInstability() for h in HALVES}} for _ in items]
     for t in sorted(by_time):
         ref = cache.get(scene, t, w, h, **ref_settings)[0]
         disp = DisplayTransform.from_reference(ref.image)      # one display transform for all three
-        lins = dict(zip(halves, (ref.image, *ref.halves())))
-        refs = {}
-        for hv, lin in lins.items():
-            d = disp.encode(lin)
-            refs[hv] = (lin, d, quantise(d), {})   # disp.to_8bit without encoding twice; FLIP's memo
+        refs = {hv: (*r, {}) for hv, r in judged_references(ref, disp).items()}   # {}: FLIP's memo
         for i, f in sorted(by_time[t]):
             it, run, st = items[i], runs[i], state[i]
             try:
@@ -99,7 +108,7 @@ def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict):
         tm = {hv: (acc.value() if acc.frames > 1 else None) for hv, acc in st["temporal"].items()}
         temporal = temporal_u = None
         if tm[""] is not None:
-            c, u = U.jackknife(*({"temporal": tm[hv]} for hv in halves))
+            c, u = U.jackknife(*({"temporal": tm[hv]} for hv in HALVES))
             temporal, temporal_u = c["temporal"], u["temporal"]
         data = {"per_frame": st["per_frame"], "uncertainty": st["uncertainty"], "temporal": temporal,
                 "temporal_u": temporal_u, "references": st["references"]}

@@ -25,24 +25,7 @@ from __future__ import annotations
 
 import math
 
-from study.config.precision import Precision  # noqa: F401  (the settings, the study file's [precision])
 from study.metrics import uncertainty as U
-
-
-def over_tolerance(res, tolerances: dict) -> list[tuple]:
-    """(label, frame, metric, uncertainty, tolerance) of every figure of a TestResult whose
-    reference uncertainty exceeds its tolerance, worst first."""
-    out = []
-    for label, per in res.per_frame.items():
-        for f, figs in per.items():
-            us = res.uncertainty.get(label, {}).get(f, {})
-            for m, ratio in U.over_tolerance(figs, us, tolerances).items():
-                out.append((label, f, m, us[m], us[m] / ratio if ratio else 0.0))
-        t, tu = res.temporal.get(label), res.temporal_u.get(label)
-        if tu is not None:
-            for m, ratio in U.over_tolerance({"temporal": t}, {"temporal": tu}, tolerances).items():
-                out.append((label, None, m, tu, tu / ratio))
-    return sorted(out, key=lambda x: -(x[3] / x[4] if x[4] else math.inf))
 
 
 def figures_of(res) -> dict:
@@ -57,6 +40,14 @@ def figures_of(res) -> dict:
         if t is not None and math.isfinite(t):
             out[(l, None, "temporal")] = (t, res.temporal_u.get(l) or 0.0)
     return out
+
+
+def over_tolerance(figures: dict, tolerances: dict) -> list[tuple]:
+    """(*key, uncertainty, tolerance) of every figure of a `figures_of` dict whose reference
+    uncertainty exceeds its tolerance, worst first."""
+    out = [(*k, u, tol) for k, (v, u) in figures.items()
+           for tol in [U.excess(k[-1], v, u, tolerances)] if tol is not None]
+    return sorted(out, key=lambda x: -(x[-2] / x[-1] if x[-1] else math.inf))
 
 
 def drift(now: dict, before: dict, tolerances: dict) -> tuple[dict, list]:

@@ -21,7 +21,8 @@ from study.config.profile import Profile, get_profile
 from study.config.techniques import TechniqueConfig
 from study.engine.execute import Executor, execute
 from study.engine.plan import Planner
-from study.engine.precision import Precision, drift, figures_of, over_tolerance
+from study.config.precision import Precision
+from study.engine.precision import drift, figures_of, over_tolerance
 from study.engine.results import Artefacts, StudyResults, TestResult, view
 from study.engine.tasks import Context, _deterministic, load_scene
 
@@ -119,10 +120,11 @@ class Study:
                 break
             over, now = {}, {}
             for t in statics + ghosts + sweeps:
-                r = self._result(t, results, {})
-                for item in over_tolerance(r, self.precision.tolerances):
-                    over.setdefault(t.scene, []).append((t.protocol.name, *item))
-                now.setdefault(t.scene, {}).update({(t.protocol.name, *k): v for k, v in figures_of(r).items()})
+                figs = {(t.protocol.name, *k): v for k, v in figures_of(self._result(t, results, {})).items()}
+                items = over_tolerance(figs, self.precision.tolerances)
+                if items:
+                    over.setdefault(t.scene, []).extend(items)
+                now.setdefault(t.scene, {}).update(figs)
             for s in now:
                 if s in refined:     # what both halves share: the change from the coarser bound
                     change, moved = drift(now[s], before[s], self.precision.tolerances)

@@ -48,7 +48,7 @@ def jackknife(full: dict, a: dict, b: dict) -> tuple[dict, dict]:
             out[k], u[k] = f, 0.0
         else:
             out[k], u[k] = 2 * f - (fa + fb) / 2, abs(fa - fb)
-    if "mse" in out and out["mse"] is not None and "psnr" in full:
+    if out.get("mse") is not None:
         m = max(out["mse"], 0.0)              # an unbiased estimate can fall below 0; MSE cannot
         out["mse"] = m
         out["rmsd"], u["rmsd"] = math.sqrt(m), (u["mse"] / (2 * math.sqrt(m)) if m > 0 else 0.0)
@@ -75,12 +75,18 @@ def tolerance(metric: str, value: float | None, tolerances: dict) -> float | Non
     return tolerances[key]
 
 
+def excess(metric: str, value: float | None, u: float | None, tolerances: dict) -> float | None:
+    """The tolerance a figure's uncertainty u exceeds, or None when it is within it (or has none)."""
+    tol = tolerance(metric, value, tolerances)
+    return tol if u is not None and tol is not None and u > tol else None
+
+
 def over_tolerance(figures: dict, us: dict, tolerances: dict) -> dict:
     """metric -> u / tolerance for every figure whose uncertainty exceeds its tolerance."""
     out = {}
     for k, u in us.items():
-        tol = tolerance(k, figures.get(k), tolerances)
-        if u is not None and tol is not None and u > tol:
+        tol = excess(k, figures.get(k), u, tolerances)
+        if tol is not None:
             out[k] = u / tol if tol > 0 else math.inf
     return out
 

@@ -344,7 +344,7 @@ def _links(stem: str, header: list[str], rows: list[list[str]], images_of: dict,
             nth = seen.get(scene, 0)            # the protocols come in the static views' order
             seen[scene] = nth + 1
             pstem = ("static", "static_converged")[min(nth, 1)]
-            for c, label in enumerate(header[2:header.index("best PSNR")], start=2):
+            for c, label in enumerate(technique_columns(header, first=2), start=2):
                 if (pstem, scene, label) in images_of:
                     links.append([r, c, images_of[(pstem, scene, label)]])
     elif stem in ("speed_error", "history_convergence"):

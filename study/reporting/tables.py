@@ -84,9 +84,14 @@ class Table:
         return "\n".join(out) + "\n"
 
 
-def technique_columns(header: list[str]) -> list[str]:
-    """The technique labels of a thesis-layout table's header: between 'metric' and 'best'."""
-    return header[1:header.index("best")] if "best" in header else header[1:]
+BEST_COLUMNS = ("best", "best PSNR")      # the column after the techniques: thesis layout, headline
+
+
+def technique_columns(header: list[str], first: int = 1) -> list[str]:
+    """The technique labels of a table's header: from column `first` (after 'metric', or after
+    'scene' and 'protocol' in the headline) to the best column."""
+    end = next((i for i, h in enumerate(header) if h in BEST_COLUMNS), len(header))
+    return header[first:end]
 
 
 def thesis_layout(title: str, results: dict[str, dict], metrics: list[str], improved: str | None,
