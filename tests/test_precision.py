@@ -63,7 +63,7 @@ def test_pooled_tolerance_and_digits():
 
 def test_precision_levels_and_settings():
     p = Precision(start_bound_lsb=2.0, finest_bound_lsb=0.125)
-    assert p.levels() == 4
+    assert p.levels() == 4 and p.bound(3) == 0.25
     base = {"se_bound_lsb": 0.5, "target_noise_db": 60.0}
     assert p.settings(base, 2) == {"se_bound_lsb": 0.5, "target_noise_db": 0.0}
     assert Precision(rule="per_pixel").settings(base, 3) == base
@@ -109,7 +109,6 @@ ssim = 5e-4
 flip = 5e-4
 relative = 0.0115
 relmse = 0.05
-start_bound_lsb = 2.0
 """
 
 
@@ -131,8 +130,10 @@ def test_figures_rule_matches_per_pixel_references_on_three_scenes(tmp_path):
     new, old = _figures(tmp_path, "figures"), _figures(tmp_path, "per_pixel")
     tol = new["tolerances"]
     assert set(new["precision"]) == {"pipe", "hairball_lit", "text_wall"}
-    assert all(not p["over"] for p in new["precision"].values())
-    assert any(p["bound_lsb"] > 0.5 for p in new["precision"].values()), new["precision"]   # samples saved
+    tests = [p for per in new["precision"].values() for p in per.values()]
+    assert all(not p["over"] for p in tests)
+    assert all(p["rounds"][0] == 8.0 and len(p["rounds"]) >= 2 for p in tests)    # probed, then checked finer
+    assert any(p["bound_lsb"] > 0.5 for p in tests), new["precision"]   # samples saved
     checked = 0
     for tn, to in zip(new["tests"], old["tests"]):
         assert (tn["scene"], tn["protocol"]) == (to["scene"], to["protocol"])
@@ -176,3 +177,20 @@ def test_drift_counts_only_the_change_the_halves_do_not_explain():
     assert change[("static", "A", 8, "psnr")] == pytest.approx(0.05 - 0.006)
     assert change[("static", "A", 8, "ssim")] == pytest.approx(0, abs=1e-12)   # within the two noises
     assert over == [("static", "A", 8, "psnr", pytest.approx(0.044), 0.01)]
+
+
+def test_drift_scaled_to_the_finer_bound_and_the_level_the_figures_ask_for():
+    """A change from 8 to 2 LSB that shrinks in proportion to the bound leaves b / (b0 - b) = 1/3 of
+    it at 2 LSB; a figure whose uncertainty is 10x its tolerance asks for ceil(log2(10 x 1.5)) = 4
+    levels more (u falls with the bound), one within it for the one level a drift needs."""
+    from study.engine.precision import MARGIN, needed_level
+    from study.engine.precision import drift
+    tol = Precision().tolerances
+    change, over = drift({("s", "A", 8, "psnr"): (30.00, 0.0)}, {("s", "A", 8, "psnr"): (30.06, 0.0)}, tol, 2 / (8 - 2))
+    assert change[("s", "A", 8, "psnr")] == pytest.approx(0.02) and len(over) == 1
+    assert MARGIN == 1.5
+    figs = {("s", "A", 8, "psnr"): (30.0, 0.1), ("s", "A", 8, "ssim"): (0.9, 1e-5)}
+    assert needed_level(figs, tol, 0, 6) == 4
+    assert needed_level(figs, tol, 2, 5) == 5                 # at most the finest
+    assert needed_level({("s", "A", 8, "ssim"): (0.9, 1e-5)}, tol, 1, 6) == 2   # at least one level finer
+    assert needed_level({("s", "A", 8, "mse"): (0.0, 0.3)}, tol, 0, 6) == 1     # no scale on a figure of 0

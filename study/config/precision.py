@@ -25,12 +25,15 @@ class Precision:
                 "relmse": self.relmse}
 
     def levels(self) -> int:
-        """How many times a scene's bound can be halved from the start."""
+        """How many times a test's bound can be halved from the start."""
         return max(0, int(math.floor(math.log2(self.start_bound_lsb / self.finest_bound_lsb) + 1e-9)))
 
+    def bound(self, level: int) -> float:
+        return self.start_bound_lsb / 2 ** level
+
     def settings(self, base: dict, level: int) -> dict:
-        """A scene's reference settings at a level. The mean-noise target is the per-pixel rule's;
+        """A test's reference settings at a level. The mean-noise target is the per-pixel rule's;
         under the figures' rule the figures decide."""
         if self.rule == "per_pixel":
             return dict(base)
-        return {**base, "se_bound_lsb": self.start_bound_lsb / 2 ** level, "target_noise_db": 0.0}
+        return {**base, "se_bound_lsb": self.bound(level), "target_noise_db": 0.0}

@@ -33,8 +33,8 @@ such files (study/config/profiles/*.toml).
     flip = 1e-4
     relative = 0.0023                                # MSE, RMSD, temporal RMS (0.01 dB of PSNR)
     relmse = 0.01                                    # relMSE HDR, a fraction of it
-    start_bound_lsb = 1.0                            # each scene's references from this per-pixel bound,
-    finest_bound_lsb = 0.125                         #   halved while a figure is over, down to this
+    start_bound_lsb = 8.0                            # each test's references probed at this per-pixel bound,
+    finest_bound_lsb = 0.125                         #   then at what the figures ask for, down to this
 
 Relative paths (scenes, technique files, out) are relative to the study file. A bad file exits 2
 with the file, the field and the value.

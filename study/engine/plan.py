@@ -103,8 +103,8 @@ def run_steps(schedule: list, inp) -> list:
 class Planner:
     def __init__(self, ctx: T.Context, ref_settings: dict, agreement_samples: int | None,
                  ref_settings_of: dict | None = None):
-        """`ref_settings_of`: scene name -> its references' settings where they differ from
-        `ref_settings` (the precision a scene's figures need; study.engine.precision)."""
+        """`ref_settings_of`: (scene name, protocol name) -> the references' settings of that test
+        where they differ from `ref_settings` (the precision its figures need; study.engine.precision)."""
         from study.engine.store import Store
         self.ctx, self.ref_settings, self.agreement_samples = ctx, dict(ref_settings), agreement_samples
         self.ref_settings_of = dict(ref_settings_of or {})
@@ -113,21 +113,20 @@ class Planner:
         self._run_task_of: dict = {}     # run key -> key of the run task that makes it
         self._metrics_task_of: dict = {}  # metrics key -> key of the metrics task that judges it
 
-    def settings(self, scene) -> dict:
-        return dict(self.ref_settings_of.get(scene.name, self.ref_settings))
+    def settings(self, scene, protocol: str) -> dict:
+        return dict(self.ref_settings_of.get((scene.name, protocol), self.ref_settings))
 
     # -- keys ----------------------------------------------------------------------------------------
-    def reference_key(self, scene, t: int, w: int, h: int) -> str:
+    def reference_key(self, scene, t: int, w: int, h: int, settings: dict) -> str:
         return task_key("reference", {"scene": scene.content_hash, "t": t, "res": (w, h),
                                       "camera": scene.camera(t, w, h).to_world.round(12).tolist(),
-                                      "settings": self.settings(scene)},
+                                      "settings": settings},
                         code=CODE["reference"])
 
-    def _reference(self, spec: str, scene, t: int, w: int, h: int) -> str:
-        key = self.reference_key(scene, t, w, h)
+    def _reference(self, spec: str, scene, t: int, w: int, h: int, settings: dict) -> str:
+        key = self.reference_key(scene, t, w, h, settings)
         if key not in self.plan.tasks:
-            self.plan.tasks[key] = Task(key, "reference", R.reference_task,
-                                        (self.ctx, spec, t, w, h, self.settings(scene)))
+            self.plan.tasks[key] = Task(key, "reference", R.reference_task, (self.ctx, spec, t, w, h, dict(settings)))
         return key
 
     # -- tests -----------------------------------------------------------------------------------------
@@ -142,9 +141,10 @@ class Planner:
         if keep not in ("all", "maps", "shown", "none"):
             raise ValueError(f"keep must be 'all', 'maps', 'shown' or 'none', not {keep!r}")
         schedule = protocol.schedule(scene)
-        test = Test(scene.name, spec, protocol, list(configs), w, h, ref_settings=self.settings(scene))
+        settings = self.settings(scene, protocol.name)
+        test = Test(scene.name, spec, protocol, list(configs), w, h, ref_settings=settings)
         kept_t = sorted({s.t for s in schedule if s.keep})
-        ref_keys = {t: self.reference_key(scene, t, w, h) for t in kept_t}
+        ref_keys = {t: self.reference_key(scene, t, w, h, settings) for t in kept_t}
         missing = []
         for c in configs:
             tech = c.make()
@@ -189,12 +189,12 @@ class Planner:
             need_run = [c for c in need_run if c.label not in shared]
             run_dep = ()
             if need_run:
-                rdeps = tuple(self._reference(spec, scene, t, w, h) for t in kept_t) \
+                rdeps = tuple(self._reference(spec, scene, t, w, h, settings) for t in kept_t) \
                     if any(c.make().inputs.display for c in need_run) else ()
                 rkey = task_key("runs", sorted(test.run_keys[c.label] for c in need_run))
                 self.plan.tasks[rkey] = Task(rkey, "run", RT.run_task, (
                     self.ctx, spec, w, h, protocol, need_run, {c.label: test.run_keys[c.label] for c in need_run},
-                    {c.label: test.run_folders[c.label] for c in need_run}, self.settings(scene)), rdeps)
+                    {c.label: test.run_folders[c.label] for c in need_run}, settings), rdeps)
                 run_dep = (rkey,)
                 self._run_task_of.update({test.run_keys[c.label]: rkey for c in need_run})
             # one metrics task judges the test's missing techniques together (study.engine.judge); a
@@ -203,14 +203,14 @@ class Planner:
             if mine:
                 ts = sorted({t for c in mine for t in test.frame_times[c.label].values()})
                 made_by = {shared.get(c.label) or (run_dep[0] if c in need_run else None) for c in mine} - {None}
-                deps = tuple(sorted(made_by)) + tuple(self._reference(spec, scene, t, w, h) for t in ts)
+                deps = tuple(sorted(made_by)) + tuple(self._reference(spec, scene, t, w, h, settings) for t in ts)
                 items = [{"label": c.label, "run_folder": test.run_folders[c.label], "run_key": test.run_keys[c.label],
                           "frame_times": test.frame_times[c.label], "maps_for": test.maps_for[c.label],
                           "keep": test.keep[c.label],
                           "key": test.metrics_keys[c.label], "folder": test.metrics_folders[c.label]} for c in mine]
                 gkey = task_key("metrics-of", sorted(it["key"] for it in items))
                 self.plan.tasks[gkey] = Task(gkey, "metrics", J.metrics_task,
-                                             (self.ctx, spec, w, h, items, self.settings(scene)), deps)
+                                             (self.ctx, spec, w, h, items, settings), deps)
                 self._metrics_task_of.update({it["key"]: gkey for it in items})
         self.plan.tests.append(test)
         return test
@@ -221,10 +221,12 @@ class Planner:
             return True
         return self.store.done(folder, key, verify_files=True) is not None
 
-    def add_agreement(self, spec: str, scene, w: int, h: int) -> None:
+    def add_agreement(self, spec: str, scene, w: int, h: int, protocol: str) -> None:
+        """The raster against frame 0's reference at the precision of `protocol`'s test (the static one)."""
         if not self.agreement_samples:
             return
-        ref = self.reference_key(scene, 0, w, h)
+        settings = self.settings(scene, protocol)
+        ref = self.reference_key(scene, 0, w, h, settings)
         key = task_key("agreement", {"scene": scene.content_hash, "res": (w, h), "samples": self.agreement_samples},
                        [ref], code=CODE["agreement"])
         path = self.store.record_path("agreement", scene.name, key)
@@ -234,5 +236,5 @@ class Planner:
             self.plan.cached[key] = {"kind": "agreement", "key": key, "data": data, "computed": False}
             return
         self.plan.tasks[key] = Task(key, "agreement", A.agreement_task, (
-            self.ctx, spec, w, h, self.agreement_samples, self.settings(scene), key, str(path)),
-            (self._reference(spec, scene, 0, w, h),))
+            self.ctx, spec, w, h, self.agreement_samples, settings, key, str(path)),
+            (self._reference(spec, scene, 0, w, h, settings),))

@@ -1,4 +1,4 @@
-"""Precision set by the figures: each scene's references refined until the reference's share of
+"""Precision set by the figures: each test's references refined until the reference's share of
 every figure's uncertainty is within its tolerance (issue 20).
 
 A reference's noise matters only through the figures it is judged into, and those figures'
@@ -6,18 +6,26 @@ uncertainty is measured, not assumed, in two parts:
   - the noise the two halves of a reference see (study.metrics.uncertainty): random, and the
     bias that scales with the noise's variance, which the jackknife removes;
   - what both halves share (`drift`): a sliver every sample of a pixel missed, the stopping
-    rule's bias. Measured at 1600x900 on hairball_lit, 2-LSB references gave every figure
-    0.2-0.6 % less MSE than 0.5-LSB ones while the halves said +-0.03 %; it shrinks with the
-    bound, so the change of a figure from the previous, twice as coarse, bound estimates it.
-So a scene starts at a coarse per-pixel bound (`start_bound_lsb`, level 0) and its references
-are rendered again at half the bound (about 4x the samples where the spread of the samples
-decides, 2x where the unseen-feature floor does) until, at some level >= 1, every figure of
-every test (every judged frame of every technique, every metric) has both its halves'
-uncertainty and its change from the level before within its tolerance, or the bound is
-`finest_bound_lsb`. A figure's stated uncertainty is the sum of the two. The
-coarser levels' work is kept in the cache (a re-run replays the same decisions from it) and costs
-at most 1/3 of the level the scene ends at. Figures still over their tolerance at the finest
-level are reported, never hidden.
+    rule's bias, the jackknife's residual where 8-bit rounding makes a figure's dependence on the
+    noise non-linear. Measured on hairball_lit at 400x225, SSAA 16x's MSE against 4-LSB references
+    stayed 0.56 % above the 0.25-LSB figure after the jackknife, while the halves said +-0.4 %;
+    at 2 LSB it was within 0.2 %. It shrinks with the bound (in proportion, to first order), so
+    the change of a figure from a coarser bound b0 to the bound b estimates what is left of it at b:
+    change x b / (b0 - b).
+Each test (a scene under one protocol: its static test, each ghosting protocol) has its own bound,
+since their figures need different precisions: a near-converged SSAA 16x on pipe (MSE 0.2) needs
+~0.25 LSB, a ghosting TAA (MSE ~10^2) far less, and a sequence's every frame pays for it.
+  1. A probe: every reference of the test at `start_bound_lsb` (8 LSB by default, a few times the
+     pilot's samples).
+  2. The bound the figures need, predicted from the probe: a figure's halves' uncertainty falls in
+     proportion to the bound, so each asks for b tol / (u x MARGIN); the test's references are
+     rendered again at the largest power-of-two fraction of the start below what every figure asks,
+     at least one level finer (the drift needs a second bound).
+  3. Checked there: every figure's halves' uncertainty plus its drift from the bound before within
+     its tolerance, else predicted again from that sum (at least one level finer), down to
+     `finest_bound_lsb`. A figure's stated uncertainty is that sum; figures still over their
+     tolerance at the finest bound are reported, never hidden.
+The probe's work (the coarser bounds') is kept in the cache (a re-run replays the same decisions).
 
 rule = "per_pixel" is the former rule: every reference at the [reference] bound, whatever the figures.
 """
@@ -50,20 +58,36 @@ def over_tolerance(figures: dict, tolerances: dict) -> list[tuple]:
     return sorted(out, key=lambda x: -(x[-2] / x[-1] if x[-1] else math.inf))
 
 
-def drift(now: dict, before: dict, tolerances: dict) -> tuple[dict, list]:
-    """What the halves cannot see: a bias both halves share (a sliver every sample of a pixel
-    missed, the stopping rule's), which shrinks as the bound does. The change of each figure from
-    the previous, twice as coarse, bound estimates what is left of it (exactly, if it shrinks in
-    proportion to the bound), beyond what the two references' own noise explains (their halves'
-    uncertainties). Returns ((label, frame, metric) -> that excess, the figures whose excess is
-    over their tolerance, as over_tolerance lists them)."""
+MARGIN = 1.5      # a figure's halves' uncertainty is one draw (about 2 sd, with a spread): aim below
+
+
+def drift(now: dict, before: dict, tolerances: dict, scale: float = 1.0) -> tuple[dict, list]:
+    """What the halves cannot see: a bias both halves share, which shrinks as the bound does. The
+    change of each figure from a coarser bound, beyond what the two references' own noise explains
+    (their halves' uncertainties), times `scale` = b / (b0 - b) estimates what is left of it at the
+    bound b (exactly, if it shrinks in proportion to the bound). Returns ((label, frame, metric) ->
+    that estimate, the figures whose estimate is over their tolerance, as over_tolerance lists them)."""
     change, over = {}, []
     for k, (v, u) in now.items():
         if k in before:
             v0, u0 = before[k]
-            d = max(0.0, abs(v - v0) - u - u0)
+            d = max(0.0, abs(v - v0) - u - u0) * scale
             change[k] = d
             tol = U.tolerance(k[-1], v, tolerances)
             if tol is not None and d > tol:
                 over.append((*k, d, tol))
     return change, over
+
+
+def needed_level(figures: dict, tolerances: dict, level: int, most: int) -> int:
+    """The level (bound start / 2**level) a test's figures ask for, from their uncertainties at
+    `level` ((value, uncertainty) by key, as figures_of gives, the drift included): u falls in
+    proportion to the bound, so a figure asks for log2(u x MARGIN / tol) levels more. At least
+    level + 1, at most `most`."""
+    want = level + 1
+    for k, (v, u) in figures.items():
+        tol = U.tolerance(k[-1], v, tolerances)
+        if tol is None or tol <= 0 or not u:     # a relative tolerance on a figure of 0: no scale to ask for
+            continue
+        want = max(want, level + math.ceil(math.log2(u * MARGIN / tol)))
+    return min(want, most)

@@ -22,7 +22,7 @@ from study.config.techniques import TechniqueConfig
 from study.engine.execute import Executor, execute
 from study.engine.plan import Planner
 from study.config.precision import Precision
-from study.engine.precision import drift, figures_of, over_tolerance
+from study.engine.precision import drift, figures_of, needed_level, over_tolerance
 from study.engine.results import Artefacts, StudyResults, TestResult, view
 from study.engine.tasks import Context, _deterministic, load_scene
 
@@ -43,37 +43,40 @@ class Study:
         self.ctx = Context(str(self.cache.root), executor.threads)
         self.ref_settings = dict(self.profile.ref_settings)
         self.precision: Precision = self.profile.precision
-        self.levels: dict[str, int] = {}          # scene name -> its precision level (study.engine.precision)
+        # (scene name, protocol name) -> the test's precision level (study.engine.precision)
+        self.levels: dict[tuple, int] = {}
         self.drifts: dict = {}
 
-    def settings_for(self, name: str) -> dict:
-        """The reference settings of a scene's references at its current precision level."""
-        return self.precision.settings(self.ref_settings, self.levels.get(name, 0))
+    def settings_for(self, name: str, protocol: str | None = None) -> dict:
+        """The settings of a test's references at its current precision level (the scene's static
+        test when no protocol is named: frame 0's reference, the agreement, the costs)."""
+        return self.precision.settings(self.ref_settings, self.levels.get((name, protocol or self.profile.static.name), 0))
 
-    def bound_of(self, name: str) -> float:
-        """The per-pixel bound a scene's references are rendered to now (a study file may leave it
+    def bound_of(self, name: str, protocol: str | None = None) -> float:
+        """The per-pixel bound a test's references are rendered to now (a study file may leave it
         to the cache's default)."""
-        return self.settings_for(name).get("se_bound_lsb", SE_BOUND_LSB)
+        return self.settings_for(name, protocol).get("se_bound_lsb", SE_BOUND_LSB)
 
     def resolution(self, scene: ResolvedScene) -> tuple[int, int]:
         r = self.profile.resolution
         return tuple(r) if isinstance(r, (tuple, list)) else scene.resolution(r)
 
-    def reference(self, scene: ResolvedScene, t: int, w: int, h: int):
-        return self.cache.get(scene, t, w, h, **self.settings_for(scene.name))[0]
+    def reference(self, scene: ResolvedScene, t: int, w: int, h: int, protocol: str | None = None):
+        return self.cache.get(scene, t, w, h, **self.settings_for(scene.name, protocol))[0]
 
     def _reference_of(self, scenes):
-        """scene name, t, w, h -> its Reference (the reporting's way to a reference's pixels)."""
+        """scene name, t, w, h[, protocol] -> its Reference (the reporting's way to a reference's pixels)."""
         by_name = {scene.name: scene for _, scene in scenes}
-        return lambda name, t, w, h: self.reference(by_name[name], t, w, h)
+        return lambda name, t, w, h, protocol=None: self.reference(by_name[name], t, w, h, protocol)
 
     # -- the whole study ----------------------------------------------------------------------------
     def plan(self, specs: list[str], configs: list[TechniqueConfig], agreement: bool = True,
              sweep: tuple = (), ghosting: bool = True):
         """The study's tests and the tasks it must compute: (plan, scenes, statics, ghosts, sweeps)."""
         scenes = [(spec, load_scene(spec)) for spec in specs]
+        protos = [self.profile.static, *self.profile.ghosting]
         planner = Planner(self.ctx, self.ref_settings, self.profile.agreement_samples if agreement else None,
-                          {scene.name: self.settings_for(scene.name) for _, scene in scenes})
+                          {(scene.name, p.name): self.settings_for(scene.name, p.name) for _, scene in scenes for p in protos})
         statics, ghosts, sweeps = [], [], []
         for spec, scene in scenes:
             w, h = self.resolution(scene)
@@ -91,20 +94,22 @@ class Study:
                 proto = self.profile.ghosting[0] if is_animated(scene) else self.profile.static
                 sweeps.append(planner.add_test(spec, scene, proto, list(sweep), w, h, maps="none",
                                                keep="all" if every else "none"))
-            planner.add_agreement(spec, scene, w, h)
+            planner.add_agreement(spec, scene, w, h, self.profile.static.name)
         return planner.plan, scenes, statics, ghosts, sweeps
 
     def run(self, specs: list[str], configs: list[TechniqueConfig], agreement: bool = True,
             sweep: tuple = (), ghosting: bool = True) -> StudyResults:
-        """Plan, execute and gather; under the figures' precision rule, again for every scene with a
-        figure over its tolerance, its references at half the bound, until none is or the finest
-        bound is reached (study.engine.precision)."""
-        rounds, tried, over, before, refined = [], {}, {}, {}, set()
-        self.drifts = {}              # scene -> (protocol, label, frame, metric) -> change from the coarser bound
+        """Plan, execute and gather; under the figures' precision rule, again for every test with a
+        figure over its tolerance (or only probed), its references at the bound its figures ask for,
+        until none is or the finest bound is reached (study.engine.precision)."""
+        rounds, tried, over, before = [], {}, {}, {}
+        self.drifts = {}              # (scene, protocol) -> (protocol, label, frame, metric) -> drift
+        most = self.precision.levels()
         while True:
             plan, scenes, statics, ghosts, sweeps = self.plan(specs, configs, agreement, sweep, ghosting)
-            for _, scene in scenes:
-                b, seen = self.bound_of(scene.name), tried.setdefault(scene.name, [])
+            tests = {(t.scene, t.protocol.name) for t in statics + ghosts + sweeps}
+            for k in sorted(tests):
+                b, seen = self.bound_of(*k), tried.setdefault(k, [])
                 if not seen or seen[-1] != b:
                     seen.append(b)
             counts = plan.counts()
@@ -118,38 +123,37 @@ class Study:
             rounds.append((counts, results))
             if self.precision.rule != "figures":
                 break
-            over, now = {}, {}
-            for t in statics + ghosts + sweeps:
-                figs = {(t.protocol.name, *k): v for k, v in figures_of(self._result(t, results, {})).items()}
-                items = over_tolerance(figs, self.precision.tolerances)
-                if items:
-                    over.setdefault(t.scene, []).extend(items)
-                now.setdefault(t.scene, {}).update(figs)
-            for s in now:
-                if s in refined:     # what both halves share: the change from the coarser bound
-                    change, moved = drift(now[s], before[s], self.precision.tolerances)
-                    self.drifts[s] = change
-                    if moved:
-                        over.setdefault(s, []).extend(moved)
-                elif s not in before and self.levels.get(s, 0) < self.precision.levels():
-                    over.setdefault(s, [])          # a first bound: compare it with the next
-            finer = [s for s in over if self.levels.get(s, 0) < self.precision.levels()]
-            refined = set(finer)
-            before.update({s: now[s] for s in finer})
-            for s in sorted(over):
-                b = self.bound_of(s)
-                if not over[s] and s in finer:
-                    self.log(f"precision: {s}: every figure within its tolerance at {b:g} LSB; "
-                             f"references again at {b / 2:g} LSB to measure what the halves cannot see")
+            now: dict = {}
+            for t in statics + ghosts + sweeps:        # a sweep shares its protocol's references
+                now.setdefault((t.scene, t.protocol.name), {}).update(
+                    {(t.protocol.name, *k): v for k, v in figures_of(self._result(t, results, {})).items()})
+            over, finer = {}, {}
+            for k in sorted(now):
+                level, figs = self.levels.get(k, 0), now[k]
+                if level > 0:        # what both halves share: the change from the coarser bound
+                    b, b0 = self.bound_of(*k), before[k][0]
+                    change, _ = drift(figs, before[k][1], self.precision.tolerances, b / (b0 - b))
+                    self.drifts[k] = change
+                    figs = {f: (v, u + change.get(f, 0.0)) for f, (v, u) in figs.items()}
+                over[k] = over_tolerance(figs, self.precision.tolerances)
+                if (over[k] or level == 0) and level < most:
+                    finer[k] = needed_level(figs, self.precision.tolerances, level, most)
+                before[k] = (self.bound_of(*k), now[k])
+            for k in sorted(set(over) | set(finer)):
+                name, b = f"{k[0]} ({k[1]})", self.bound_of(*k)
+                nxt = f"references again at {self.precision.bound(finer[k]):g} LSB" if k in finer else ""
+                if not over[k]:
+                    if k in finer:
+                        self.log(f"precision: {name}: every figure within its tolerance at the {b:g}-LSB probe; {nxt}, "
+                                 "where the figures ask for it and the drift can be measured")
                     continue
-                label, tech, f, m, u, tol = max(over[s], key=lambda x: x[4] / x[5] if x[5] else math.inf)
-                self.log(f"precision: {s}: {len(over[s])} figures over their tolerance at {b:g} LSB, the worst "
+                label, tech, f, m, u, tol = over[k][0]
+                self.log(f"precision: {name}: {len(over[k])} figures over their tolerance at {b:g} LSB, the worst "
                          f"{m} of {tech} ({label}, frame {f}) +-{u:.3g} > {tol:.3g}; "
-                         + (f"references again at {b / 2:g} LSB" if s in finer else "the finest bound: reported"))
+                         + (nxt if k in finer else "the finest bound: reported"))
             if not finer:
                 break
-            for s in finer:
-                self.levels[s] = self.levels.get(s, 0) + 1
+            self.levels.update(finer)
         results = {k: v for _, r in rounds for k, v in r.items()}
         counts: dict = {}
         for c, _ in rounds:
@@ -158,8 +162,10 @@ class Study:
 
         out = StudyResults(artefacts=Artefacts(self.cache.root), reference=self._reference_of(scenes),
                            thesis_history=self.profile.thesis_history, tolerances=self.precision.tolerances)
-        out.precision = {name: {"bound_lsb": self.bound_of(name), "rule": self.precision.rule,
-                                "over": over.get(name, []), "rounds": tried[name]} for name in tried}
+        out.precision = {}
+        for (name, proto), seen in sorted(tried.items()):
+            out.precision.setdefault(name, {})[proto] = {"bound_lsb": self.bound_of(name, proto), "rule": self.precision.rule,
+                                                         "over": over.get((name, proto), []), "rounds": seen}
         out.stats = {"runs_computed": sum(len([r for r in v["runs"].values() if r["computed"]])
                                           for v in results.values() if v["kind"] == "run"),
                      "metrics_computed": sum(1 for v in results.values() if v["kind"] == "metrics" and v["computed"]),
@@ -186,7 +192,7 @@ class Study:
 
     def _with_drift(self, res: TestResult) -> TestResult:
         """A figure's stated uncertainty: its halves' plus its change from the coarser bound."""
-        change = self.drifts.get(res.scene, {})
+        change = self.drifts.get((res.scene, res.test), {})
         if not change:
             return res
         res.uncertainty = {label: {f: {m: u + change.get((res.test, label, f, m), 0.0) if u is not None else None

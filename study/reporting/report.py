@@ -218,18 +218,19 @@ class Report(Summaries):
         if not res.precision:
             return
         rows = []
-        for scene, p in sorted(res.precision.items()):
-            ref = res.references.get(scene)
-            worst = max(p["over"], key=lambda x: x[4] / x[5] if x[5] else math.inf) if p["over"] else None
-            rows.append([scene, p["rule"], " → ".join(f"{b:g}" for b in p["rounds"]), f"{p['bound_lsb']:g}",
-                         str(ref.spp) if ref is not None else "–", str(len(p["over"])),
-                         "–" if worst is None else f"{worst[3]} of {worst[1]} ±{worst[4]:.2g} > {worst[5]:.2g}"])
+        for scene, per in sorted(res.precision.items()):
+            for proto, p in sorted(per.items()):
+                worst = max(p["over"], key=lambda x: x[4] / x[5] if x[5] else math.inf) if p["over"] else None
+                rows.append([scene, proto, p["rule"], " → ".join(f"{b:g}" for b in p["rounds"]), f"{p['bound_lsb']:g}",
+                             str(len(p["over"])),
+                             "–" if worst is None else f"{worst[3]} of {worst[1]} ±{worst[4]:.2g} > {worst[5]:.2g}"])
         tol = ", ".join(f"{k} {v:g}" for k, v in sorted(res.tolerances.items()))
-        note = ("Each scene's references start at a coarse per-pixel bound and are refined by halves while any "
-                "figure's reference uncertainty exceeds its tolerance (" + tol + "; relative and relmse as "
-                "fractions of the figure). spp: frame 0's mean samples per pixel at the final bound.")
+        note = ("Each test's references are probed at a coarse per-pixel bound, then rendered at the bound its "
+                "figures ask for and checked there, while any figure's reference uncertainty (its halves' plus its "
+                "drift from the coarser bound) exceeds its tolerance (" + tol + "; relative and relmse as "
+                "fractions of the figure).")
         self._table("reference_precision", Table("Reference precision: bounds set by the figures",
-                                                 ["scene", "rule", "bounds tried (LSB)", "final (LSB)", "spp",
+                                                 ["scene", "test", "rule", "bounds tried (LSB)", "final (LSB)",
                                                   "figures over", "worst"], rows, note), inputs)
 
     def finish(self, summary: dict) -> None:
@@ -287,7 +288,7 @@ def write_study(out: Path, res, configs, summary: dict, start: float) -> None:
     for pname, results in list(res.ghosts.items())[:1]:      # the first (the thesis's) ghosting protocol
         for g in results:
             ghost_views.setdefault(g.scene, {})[pname] = report.ghosting_frames(
-                g, lambda t, g=g: res.reference(g.scene, t, g.width, g.height))
+                g, lambda t, g=g: res.reference(g.scene, t, g.width, g.height, g.test))
     report.finish({**summary, "seconds": round(time.perf_counter() - start, 2)})
     data = html_report.collect(out)
     for scene, gv in ghost_views.items():
