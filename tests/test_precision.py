@@ -194,3 +194,17 @@ def test_drift_scaled_to_the_finer_bound_and_the_level_the_figures_ask_for():
     assert needed_level(figs, tol, 2, 5) == 5                 # at most the finest
     assert needed_level({("s", "A", 8, "ssim"): (0.9, 1e-5)}, tol, 1, 6) == 2   # at least one level finer
     assert needed_level({("s", "A", 8, "mse"): (0.0, 0.3)}, tol, 0, 6) == 1     # no scale on a figure of 0
+
+
+def test_snr_is_derived_from_the_corrected_mse_as_psnr_is():
+    """SNR = 10 log10(P / MSE): corrected through the MSE, it keeps its offset to PSNR (the
+    reference's power) and PSNR's uncertainty; jackknifed in dB on its own it would not."""
+    def figs(mse, power):
+        return {"mse": mse, "psnr": 10 * math.log10(255 ** 2 / mse), "snr": 10 * math.log10(power / mse)}
+    full, a, b = figs(0.30, 9000.0), figs(0.42, 9001.0), figs(0.38, 8999.0)
+    c, u = U.jackknife(full, a, b)
+    assert c["mse"] == pytest.approx(2 * 0.30 - 0.40)
+    assert c["snr"] - c["psnr"] == pytest.approx(full["snr"] - full["psnr"])
+    assert c["snr"] == pytest.approx(10 * math.log10(9000.0 / 0.20))
+    assert u["snr"] == u["psnr"] == pytest.approx(10 / math.log(10) * 0.04 / 0.20)
+    assert 2 * full["snr"] - (a["snr"] + b["snr"]) / 2 != pytest.approx(c["snr"], abs=0.1)   # the dB jackknife differs

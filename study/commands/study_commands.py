@@ -63,6 +63,7 @@ def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
     from study.config.profile import SPARSE_SWEEP
     from study.engine.runner import Study
     from study.engine.tasks import TaskError
+    from study.engine.tasks import load_scene as _load
     prof = _profile(study_file, profile)
     names = scene_list or list(prof.scenes) or builtin_names()
     configs = _techniques((), prof.techniques)
@@ -84,9 +85,13 @@ def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
         if measure:
             click.echo(f"estimate: measuring {name} at {sw.width}x{sw.height} ...", err=True)
             try:
-                # at the start bound; the figures' rule may refine a scene (study.engine.precision)
                 units = E.measure_units(sw, study.settings_for(name), study.cache,
                                         [c for c in configs if c.label in sw.configs] or configs[:1])
+                if study.precision.rule == "figures":
+                    # a probe, then the bound the figures ask for (study.engine.precision), which
+                    # only the run knows: priced at the per-pixel [reference] bound
+                    final = study.cache.get(_load(sw.spec), 0, sw.width, sw.height, **study.ref_settings)[0]
+                    units["reference_s"] += final.seconds
             except TaskError as exc:
                 _fail(str(exc))
             row["unit_s"] = {k: v for k, v in units.items() if k != "subframe_s"}
@@ -116,7 +121,9 @@ def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
         click.echo(line)
     if measure:
         click.echo("extrapolated minutes: " + ", ".join(f"{k} {v / 60:.1f}" for k, v in totals.items())
-                   + " (references of moving scenes taken at frame 0's cost)")
+                   + " (references of moving scenes taken at frame 0's cost"
+                   + ("; each a probe plus a render at the [reference] bound, where the figures' rule may ask"
+                      " more or less)" if study.precision.rule == "figures" else ")"))
 
 
 def _technique_names(ctx, param, value):
