@@ -208,3 +208,31 @@ def test_snr_is_derived_from_the_corrected_mse_as_psnr_is():
     assert c["snr"] == pytest.approx(10 * math.log10(9000.0 / 0.20))
     assert u["snr"] == u["psnr"] == pytest.approx(10 / math.log(10) * 0.04 / 0.20)
     assert 2 * full["snr"] - (a["snr"] + b["snr"]) / 2 != pytest.approx(c["snr"], abs=0.1)   # the dB jackknife differs
+
+
+def test_one_display_transform_per_frame_at_every_precision(tmp_path):
+    """A display-space technique's run and every frame's transform come from the frame's probe
+    reference: references of a test at another bound change its metrics' keys, not FXAA's run."""
+    from study.engine.plan import Planner
+    from study.engine.tasks import Context, display_of, load_scene
+    from study.config.protocols import Protocol
+    from study.config.techniques import TechniqueConfig
+    from references import ReferenceCache
+    from display import DisplayTransform
+    scene = load_scene("pipe")
+    ctx = Context(str(tmp_path), 1)
+    p = Precision()
+    base = {"se_bound_lsb": 0.5, "target_noise_db": 60.0}
+    disp = p.display_settings(base)
+    assert disp == {"se_bound_lsb": 8.0, "target_noise_db": 0.0}
+    proto = Protocol("static", "static", history=4, checkpoints=(4,))
+    fx = [TechniqueConfig.parse("FXAA=fxaa")]
+    keys = []
+    for level in (0, 3):
+        pl = Planner(ctx, base, None, {("pipe", proto.name): p.settings(base, level)}, disp)
+        t = pl.add_test("pipe", scene, proto, fx, 32, 18)
+        keys.append((t.run_keys["FXAA"], t.metrics_keys["FXAA"]))
+    assert keys[0][0] == keys[1][0] and keys[0][1] != keys[1][1]
+    cache = ReferenceCache(tmp_path)
+    got = display_of(cache, scene, 0, 32, 18, disp)
+    assert got == DisplayTransform.from_reference(cache.get(scene, 0, 32, 18, **disp)[0].image)

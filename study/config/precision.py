@@ -31,6 +31,11 @@ class Precision:
     def bound(self, level: int) -> float:
         return self.start_bound_lsb / 2 ** level
 
+    def display_settings(self, base: dict) -> dict:
+        """The reference a frame's display transform comes from, under either rule: the probe's
+        (study.engine.tasks.display_of)."""
+        return {**base, "se_bound_lsb": self.start_bound_lsb, "target_noise_db": 0.0}
+
     def settings(self, base: dict, level: int) -> dict:
         """A test's reference settings at a level. The mean-noise target is the per-pixel rule's;
         under the figures' rule the figures decide."""

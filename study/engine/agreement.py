@@ -28,7 +28,7 @@ from references import ReferenceCache, trace_pixel_centres
 from references import settings as S
 from scenes import ResolvedScene
 from scenes.jitter import halton_offsets
-from study.engine.tasks import Context, _deterministic, _setup, load_scene
+from study.engine.tasks import Context, _deterministic, _setup, display_of, load_scene
 from study.metrics.uncertainty import jackknife
 
 TARGETS = {"agreement_psnr_db": 45.0, "interior_max_abs_err": 1e-4, "reference_noise_psnr_db": 55.0}
@@ -90,7 +90,10 @@ def _interior(ids: np.ndarray) -> np.ndarray:
 
 def check_agreement(scene: ResolvedScene, width: int, height: int, *, frame: int = 0, samples: int = 256,
                     cache: ReferenceCache | None = None, target_noise_db: float = S.TARGET_NOISE_DB,
-                    se_bound_lsb: float = S.SE_BOUND_LSB, progress: bool = True) -> Agreement:
+                    se_bound_lsb: float = S.SE_BOUND_LSB, progress: bool = True,
+                    display: DisplayTransform | None = None) -> Agreement:
+    """`display`: the transform both are judged under (a study's: study.engine.tasks.display_of);
+    by default the reference's own."""
     import time
     cache = cache or ReferenceCache()
     raster = Rasterizer(scene, width, height)
@@ -112,7 +115,7 @@ def check_agreement(scene: ResolvedScene, width: int, height: int, *, frame: int
                             se_bound_lsb=se_bound_lsb, progress=lambda spp, db: (bar.update(spp - bar.n), bar.set_postfix(noise_db=f"{db:.1f}")))
     bar.close()
 
-    disp = DisplayTransform.from_reference(ref.image)
+    disp = display or DisplayTransform.from_reference(ref.image)
     x = disp.encode(mean).astype(np.float64)
     # the reference's noise removed with its two halves (study.metrics.uncertainty), as for every figure
     figs = [{"mse": float(np.mean((x - disp.encode(r)) ** 2)) * 255.0 ** 2} for r in (ref.image, *ref.halves())]
@@ -142,7 +145,7 @@ def check_agreement(scene: ResolvedScene, width: int, height: int, *, frame: int
 # -- agreement of a scene -------------------------------------------------------------------------------
 @_deterministic
 def agreement_task(ctx: Context, scene_spec: str, w: int, h: int, samples: int, ref_settings: dict,
-                   key: str, path: str, deps=()) -> dict:
+                   display_settings: dict, key: str, path: str, deps=()) -> dict:
     from references import ReferenceCache
 
     from study.engine.agreement import check_agreement
@@ -151,8 +154,10 @@ def agreement_task(ctx: Context, scene_spec: str, w: int, h: int, samples: int, 
     with store.lock(key):
         data = store.load_record(Path(path), key)
         if data is None:
-            a = check_agreement(scene, w, h, samples=samples, cache=ReferenceCache(Path(ctx.cache_root)),
-                                progress=False, **_agreement_settings(ref_settings))
+            cache = ReferenceCache(Path(ctx.cache_root))
+            a = check_agreement(scene, w, h, samples=samples, cache=cache, progress=False,
+                                display=display_of(cache, scene, 0, w, h, display_settings),
+                                **_agreement_settings(ref_settings))
             data = store.save_record(Path(path), key, a.as_dict())
             computed = True
         else:

@@ -16,7 +16,7 @@ from __future__ import annotations
 import contextlib
 from pathlib import Path
 
-from study.engine.tasks import TaskError, _deterministic, _setup, load_scene
+from study.engine.tasks import TaskError, _deterministic, _setup, display_of, load_scene
 from study.metrics import suite as M
 from study.metrics import uncertainty as U
 
@@ -36,7 +36,8 @@ def judged_references(ref, disp) -> dict:
 
 
 @_deterministic
-def metrics_task(ctx, scene_spec: str, w: int, h: int, items: list, ref_settings: dict, deps=()) -> dict:
+def metrics_task(ctx, scene_spec: str, w: int, h: int, items: list, ref_settings: dict, display_settings: dict,
+                 deps=()) -> dict:
     """items: one per technique, {run_folder, run_key, frame_times (frame id -> scene time),
     maps_for (frame ids whose maps are kept), keep (frame ids of the run to keep once judged, or
     None for all), key, folder}. Returns the records by metrics key."""
@@ -54,15 +55,14 @@ def metrics_task(ctx, scene_spec: str, w: int, h: int, items: list, ref_settings
             else:
                 todo.append(it)
         if todo:
-            for it, data in _judge(store, ctx, scene, w, h, todo, ref_settings):
+            for it, data in _judge(store, ctx, scene, w, h, todo, ref_settings, display_settings):
                 records[it["key"]] = {"data": data, "computed": True}
     return {"kind": "metrics", "records": records}
 
 
-def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict):
+def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict, display_settings: dict):
     import numpy as np
 
-    from display import DisplayTransform
     from references import ReferenceCache
 
     from study.engine.store import TamperError
@@ -84,7 +84,7 @@ def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict):
               "temporal": {h: M.TemporalInstability() for h in HALVES}} for _ in items]
     for t in sorted(by_time):
         ref = cache.get(scene, t, w, h, **ref_settings)[0]
-        disp = DisplayTransform.from_reference(ref.image)      # one display transform for all three
+        disp = display_of(cache, scene, t, w, h, display_settings)     # one transform for all three
         refs = {hv: (*r, {}) for hv, r in judged_references(ref, disp).items()}   # {}: FLIP's memo
         for i, f in sorted(by_time[t]):
             it, run, st = items[i], runs[i], state[i]

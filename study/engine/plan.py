@@ -102,12 +102,15 @@ def run_steps(schedule: list, inp) -> list:
 
 class Planner:
     def __init__(self, ctx: T.Context, ref_settings: dict, agreement_samples: int | None,
-                 ref_settings_of: dict | None = None):
+                 ref_settings_of: dict | None = None, display_settings: dict | None = None):
         """`ref_settings_of`: (scene name, protocol name) -> the references' settings of that test
-        where they differ from `ref_settings` (the precision its figures need; study.engine.precision)."""
+        where they differ from `ref_settings` (the precision its figures need; study.engine.precision).
+        `display_settings`: the references every frame's display transform comes from
+        (study.engine.tasks.display_of), `ref_settings` if not given."""
         from study.engine.store import Store
         self.ctx, self.ref_settings, self.agreement_samples = ctx, dict(ref_settings), agreement_samples
         self.ref_settings_of = dict(ref_settings_of or {})
+        self.display_settings = dict(display_settings or ref_settings)
         self.store = Store(Path(ctx.cache_root))
         self.plan = Plan()
         self._run_task_of: dict = {}     # run key -> key of the run task that makes it
@@ -145,14 +148,15 @@ class Planner:
         test = Test(scene.name, spec, protocol, list(configs), w, h, ref_settings=settings)
         kept_t = sorted({s.t for s in schedule if s.keep})
         ref_keys = {t: self.reference_key(scene, t, w, h, settings) for t in kept_t}
+        disp_keys = {t: self.reference_key(scene, t, w, h, self.display_settings) for t in kept_t}
         missing = []
         for c in configs:
             tech = c.make()
             inp = tech.inputs
             judged = judged_steps(schedule, inp.sampling)
             test.frame_times[c.label] = {s.frame: s.t for s in judged}
-            # Display-space techniques see a display transform built from the reference.
-            inputs = [ref_keys[t] for t in kept_t] if inp.display else []
+            # Display-space techniques see a display transform built from a reference.
+            inputs = [disp_keys[t] for t in kept_t] if inp.display else []
             key = task_key("run", {"scene": scene.content_hash, "res": (w, h), "schedule": run_steps(schedule, inp),
                                    "technique": c.key_data()}, inputs, code=[type(tech), *CODE["run"]])
             folder = self.store.folder(protocol.kind, scene.name, key)
@@ -167,9 +171,9 @@ class Planner:
                 mf = [frames[-1]]
             test.maps_for[c.label] = mf
             test.keep[c.label] = {"all": None, "maps": mf, "shown": shown_frames(frames), "none": []}[keep]
+            ts = sorted(set(test.frame_times[c.label].values()))
             mkey = task_key("metrics", {"frames": test.frame_times[c.label], "maps": mf},
-                            [key] + [ref_keys[t] for t in sorted(set(test.frame_times[c.label].values()))],
-                            code=CODE["metrics"])
+                            [key] + [ref_keys[t] for t in ts] + [disp_keys[t] for t in ts], code=CODE["metrics"])
             mfolder = self.store.root / "metrics" / scene.name / mkey
             test.metrics_keys[c.label], test.metrics_folders[c.label] = mkey, str(mfolder)
             mrec = self.store.done(mfolder, mkey, verify_files=bool(mf))
@@ -189,12 +193,12 @@ class Planner:
             need_run = [c for c in need_run if c.label not in shared]
             run_dep = ()
             if need_run:
-                rdeps = tuple(self._reference(spec, scene, t, w, h, settings) for t in kept_t) \
+                rdeps = tuple(self._reference(spec, scene, t, w, h, self.display_settings) for t in kept_t) \
                     if any(c.make().inputs.display for c in need_run) else ()
                 rkey = task_key("runs", sorted(test.run_keys[c.label] for c in need_run))
                 self.plan.tasks[rkey] = Task(rkey, "run", RT.run_task, (
                     self.ctx, spec, w, h, protocol, need_run, {c.label: test.run_keys[c.label] for c in need_run},
-                    {c.label: test.run_folders[c.label] for c in need_run}, settings), rdeps)
+                    {c.label: test.run_folders[c.label] for c in need_run}, self.display_settings), rdeps)
                 run_dep = (rkey,)
                 self._run_task_of.update({test.run_keys[c.label]: rkey for c in need_run})
             # one metrics task judges the test's missing techniques together (study.engine.judge); a
@@ -203,14 +207,15 @@ class Planner:
             if mine:
                 ts = sorted({t for c in mine for t in test.frame_times[c.label].values()})
                 made_by = {shared.get(c.label) or (run_dep[0] if c in need_run else None) for c in mine} - {None}
-                deps = tuple(sorted(made_by)) + tuple(self._reference(spec, scene, t, w, h, settings) for t in ts)
+                deps = tuple(sorted(made_by)) + tuple(dict.fromkeys(
+                    self._reference(spec, scene, t, w, h, s) for t in ts for s in (settings, self.display_settings)))
                 items = [{"label": c.label, "run_folder": test.run_folders[c.label], "run_key": test.run_keys[c.label],
                           "frame_times": test.frame_times[c.label], "maps_for": test.maps_for[c.label],
                           "keep": test.keep[c.label],
                           "key": test.metrics_keys[c.label], "folder": test.metrics_folders[c.label]} for c in mine]
                 gkey = task_key("metrics-of", sorted(it["key"] for it in items))
                 self.plan.tasks[gkey] = Task(gkey, "metrics", J.metrics_task,
-                                             (self.ctx, spec, w, h, items, settings), deps)
+                                             (self.ctx, spec, w, h, items, settings, self.display_settings), deps)
                 self._metrics_task_of.update({it["key"]: gkey for it in items})
         self.plan.tests.append(test)
         return test
@@ -227,8 +232,9 @@ class Planner:
             return
         settings = self.settings(scene, protocol)
         ref = self.reference_key(scene, 0, w, h, settings)
+        disp = self.reference_key(scene, 0, w, h, self.display_settings)
         key = task_key("agreement", {"scene": scene.content_hash, "res": (w, h), "samples": self.agreement_samples},
-                       [ref], code=CODE["agreement"])
+                       [ref, disp], code=CODE["agreement"])
         path = self.store.record_path("agreement", scene.name, key)
         self.plan.agreements[scene.name] = key
         data = self.store.load_record(path, key)
@@ -236,5 +242,6 @@ class Planner:
             self.plan.cached[key] = {"kind": "agreement", "key": key, "data": data, "computed": False}
             return
         self.plan.tasks[key] = Task(key, "agreement", A.agreement_task, (
-            self.ctx, spec, w, h, self.agreement_samples, settings, key, str(path)),
-            (self._reference(spec, scene, 0, w, h, settings),))
+            self.ctx, spec, w, h, self.agreement_samples, settings, self.display_settings, key, str(path)),
+            tuple(dict.fromkeys((self._reference(spec, scene, 0, w, h, settings),
+                                 self._reference(spec, scene, 0, w, h, self.display_settings)))))

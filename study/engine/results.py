@@ -47,7 +47,8 @@ class StudyResults:
     references: dict = field(default_factory=dict)     # scene -> Reference (frame 0)
     stats: dict = field(default_factory=dict)
     artefacts: "Artefacts | None" = None                # the pixels behind the figures
-    reference: object = None                           # (scene name, t, w, h) -> Reference
+    reference: object = None                           # (scene name, t, w, h[, protocol]) -> Reference
+    display: object = None                             # (scene name, t, w, h) -> its DisplayTransform
     thesis_history: int = THESIS_HISTORY
     # scene -> {"bound_lsb": its references' final per-pixel bound, "over": [figures still over their
     # tolerance there], "rounds": bounds tried} (study.engine.precision)

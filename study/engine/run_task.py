@@ -6,16 +6,15 @@ from pathlib import Path
 
 from provenance import task_key
 from study.engine.drive import run_schedule
-from study.engine.tasks import Context, TaskError, _deterministic, _setup, load_scene
+from study.engine.tasks import Context, TaskError, _deterministic, _setup, display_of, load_scene
 
 
 @_deterministic
 def run_task(ctx: Context, scene_spec: str, w: int, h: int, protocol, configs: list, keys: dict,
-             folders: dict, ref_settings: dict, deps=()) -> dict:
+             folders: dict, display_settings: dict, deps=()) -> dict:
     """Run the techniques `configs` (sharing raster frames) over `protocol` on one scene; file each
-    technique's judged frames under its key. Returns label -> done record summary."""
-    from display import DisplayTransform
-
+    technique's judged frames under its key. A display-space technique sees each frame's display
+    transform (study.engine.tasks.display_of). Returns label -> done record summary."""
     store = _setup(ctx)
     scene = load_scene(scene_spec)
     out, todo = {}, []
@@ -34,7 +33,7 @@ def run_task(ctx: Context, scene_spec: str, w: int, h: int, protocol, configs: l
                 from references import ReferenceCache
                 cache = ReferenceCache(Path(ctx.cache_root))
                 for t in sorted({s.t for s in schedule if s.keep}):   # one reference held at a time
-                    displays[t] = DisplayTransform.from_reference(cache.get(scene, t, w, h, **ref_settings)[0].image)
+                    displays[t] = display_of(cache, scene, t, w, h, display_settings)
             writers = {c.label: store.writer(Path(folders[c.label])) for c in todo}
             frames: dict = {c.label: [] for c in todo}
 

@@ -24,7 +24,7 @@ from study.engine.plan import Planner
 from study.config.precision import Precision
 from study.engine.precision import drift, figures_of, needed_level, over_tolerance
 from study.engine.results import Artefacts, StudyResults, TestResult, view
-from study.engine.tasks import Context, _deterministic, load_scene
+from study.engine.tasks import Context, _deterministic, display_of, load_scene
 
 
 def is_animated(scene: ResolvedScene) -> bool:
@@ -43,6 +43,7 @@ class Study:
         self.ctx = Context(str(self.cache.root), executor.threads)
         self.ref_settings = dict(self.profile.ref_settings)
         self.precision: Precision = self.profile.precision
+        self.display_settings = self.precision.display_settings(self.ref_settings)
         # (scene name, protocol name) -> the test's precision level (study.engine.precision)
         self.levels: dict[tuple, int] = {}
         self.drifts: dict = {}
@@ -64,6 +65,10 @@ class Study:
     def reference(self, scene: ResolvedScene, t: int, w: int, h: int, protocol: str | None = None):
         return self.cache.get(scene, t, w, h, **self.settings_for(scene.name, protocol))[0]
 
+    def display(self, scene: ResolvedScene, t: int, w: int, h: int):
+        """Frame t's display transform (study.engine.tasks.display_of)."""
+        return display_of(self.cache, scene, t, w, h, self.display_settings)
+
     def _reference_of(self, scenes):
         """scene name, t, w, h[, protocol] -> its Reference (the reporting's way to a reference's pixels)."""
         by_name = {scene.name: scene for _, scene in scenes}
@@ -76,7 +81,8 @@ class Study:
         scenes = [(spec, load_scene(spec)) for spec in specs]
         protos = [self.profile.static, *self.profile.ghosting]
         planner = Planner(self.ctx, self.ref_settings, self.profile.agreement_samples if agreement else None,
-                          {(scene.name, p.name): self.settings_for(scene.name, p.name) for _, scene in scenes for p in protos})
+                          {(scene.name, p.name): self.settings_for(scene.name, p.name) for _, scene in scenes for p in protos},
+                          self.display_settings)
         statics, ghosts, sweeps = [], [], []
         for spec, scene in scenes:
             w, h = self.resolution(scene)
@@ -160,7 +166,9 @@ class Study:
             for k, n in c.items():
                 counts[k] = counts.get(k, 0) + n
 
+        by_name = {scene.name: scene for _, scene in scenes}
         out = StudyResults(artefacts=Artefacts(self.cache.root), reference=self._reference_of(scenes),
+                           display=lambda name, t, w, h: self.display(by_name[name], t, w, h),
                            thesis_history=self.profile.thesis_history, tolerances=self.precision.tolerances)
         out.precision = {}
         for (name, proto), seen in sorted(tried.items()):
@@ -243,8 +251,6 @@ class Study:
 
     # -- costs: serial, after everything else ---------------------------------------------------------
     def _costs(self, scenes, statics, results) -> dict:
-        from display import DisplayTransform
-
         from study.engine import costs as C
         from study.engine.store import Store
         store = Store(self.cache.root)
@@ -275,8 +281,7 @@ class Study:
             for test, scene, c, extra, key, path in tqdm(todo, desc="costs (serial)", unit="technique",
                                                           disable=not self.progress, file=sys.stderr):
                 if test.scene not in refs:
-                    refs[test.scene] = DisplayTransform.from_reference(
-                        self.reference(scene, 0, test.width, test.height).image)
+                    refs[test.scene] = self.display(scene, 0, test.width, test.height)
                 got = _deterministic(C.measure)(scene, test.width, test.height, [c], {0: refs[test.scene]},
                                                 {c.label: extra})[c.label]
                 out[(test.scene, c.label)] = store.save_record(path, key, got)

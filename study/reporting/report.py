@@ -32,11 +32,14 @@ class Report(Summaries):
 
     FOLDERS = ("tables", "images", "maps", "plots")
 
-    def __init__(self, out: Path, artefacts=None, roles: dict | None = None):
+    def __init__(self, out: Path, artefacts=None, roles: dict | None = None, display=None):
         """`artefacts`: the engine's reader of frames and maps (study.engine.results.Artefacts).
         `roles`: thesis column (THESIS_COLUMNS) -> the label of the technique that *is* it (registry
-        name with default parameters; study.config.profile.thesis_roles), whatever the study calls it."""
+        name with default parameters; study.config.profile.thesis_roles), whatever the study calls it.
+        `display`: (scene, t, w, h) -> the frame's display transform the figures were judged under
+        (study.engine.results.StudyResults.display); by default each reference's own."""
         self.out = Path(out)
+        self._display = display
         self.artefacts = artefacts
         self.roles = dict(roles) if roles is not None else {c: c for c in THESIS_COLUMNS}
         self.improved = self.roles.get("Improved")
@@ -46,6 +49,9 @@ class Report(Summaries):
             self.previous = json.loads((self.out / "manifest.json").read_text()).get("artefacts", {})
         except (OSError, ValueError):
             self.previous = {}
+
+    def display(self, scene: str, t: int, w: int, h: int, ref) -> DisplayTransform:
+        return self._display(scene, t, w, h) if self._display else DisplayTransform.from_reference(ref.image)
 
     def _unchanged(self, rel: str, inputs: dict) -> bool:
         prev = self.previous.get(rel)
@@ -102,7 +108,7 @@ class Report(Summaries):
         table = thesis_layout(f"Static test, {res.test}: {res.scene}", results, STATIC_METRICS,
                               self.improved if self.improved in results else None, note, uncertainty=us)
         self._table(f"{stem}_{res.scene}", table, inputs)
-        disp = DisplayTransform.from_reference(ref.image)
+        disp = self.display(res.scene, 0, res.width, res.height, ref)
         self._file(f"images/{stem}_{res.scene}_reference.png", lambda: png(disp.to_8bit(ref.image)),
                    {"reference": ref.key})
         for label, a in res.artefacts.items():
@@ -177,7 +183,7 @@ class Report(Summaries):
         def ref_of(t):
             if t not in cache:
                 r = reference(t)
-                cache[t] = (r, DisplayTransform.from_reference(r.image))
+                cache[t] = (r, self.display(res.scene, t, res.width, res.height, r))
             return cache[t]
         for t in frames:
             rel = f"images/{stem}_reference_{t:04d}.png"
@@ -264,7 +270,7 @@ def write_study(out: Path, res, configs, summary: dict, start: float) -> None:
 
     from study.config.profile import thesis_roles
     from study.reporting import html_report
-    report = Report(out, res.artefacts, thesis_roles(configs))
+    report = Report(out, res.artefacts, thesis_roles(configs), res.display)
     views = res.views
     for vi, results in enumerate(views.values()):
         for r in results:
