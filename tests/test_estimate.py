@@ -46,8 +46,9 @@ def test_units_of_a_tiny_study_by_hand_and_none_once_it_ran(tmp_path, monkeypatc
     path.write_text(STUDY.format(scenes=json.dumps(scenes)))
     got = _estimate(path)
     mov, still = got["tiny_moving"], got["tiny_still"]
-    # tiny_moving, 4 frames: one reference per frame (the static test's frame 0 is ghosting's t = 0)
-    assert mov["references"] == 4
+    # tiny_moving, 4 frames: one reference per frame (the static test's frame 0 is ghosting's t = 0),
+    # and its probe, whose display transform every figure of the frame is judged under
+    assert mov["references"] == 2 * 4
     # raster frames rendered once each: static 16 jittered + 1 centre; cold ghosting 4 jittered +
     # 4 centre; warm: 16 warm-up at t = 0, then t = 0..3 with jitter 16..19 = 0..3, of which
     # (t 0, jitter 0, previous 0) is the first warm-up frame: 16 + 3 (its No AA is the cold run's)
@@ -56,7 +57,7 @@ def test_units_of_a_tiny_study_by_hand_and_none_once_it_ran(tmp_path, monkeypatc
     assert mov["technique_steps"] == (16 + 4 + 20) + (1 + 4) + (1 + 4)
     assert mov["technique_frames_judged"] == (3 + 4 + 4) + (1 + 4) + (1 + 4)
     # tiny_still is not animated: the static test only
-    assert (still["references"], still["raster_frames"], still["subframes"]) == (1, 17, 4)
+    assert (still["references"], still["raster_frames"], still["subframes"]) == (2, 17, 4)
     assert (still["technique_steps"], still["technique_frames_judged"]) == (16 + 1 + 1, 3 + 1 + 1)
 
     run_cli(["run", path, "--out", tmp_path / "out", "--precision", "per_pixel"])

@@ -58,7 +58,10 @@ def test_one_metrics_task_per_test_reads_each_reference_once_and_agrees_with_jud
             # judge_run takes frame ids for scene times: the static test's frames (history lengths) all show t 0
             refs = {f: study.reference(study_scene(scenes[0]), f if test.kind == "ghosting" else 0,
                                        test.width, test.height) for f in images}
-            disp = {t: DisplayTransform.from_reference(r.image) for t, r in refs.items()}
+            # every frame under its probe's transform (study.engine.tasks.display_of)
+            disp = {f: DisplayTransform.from_reference(study.cache.get(
+                study_scene(scenes[0]), f if test.kind == "ghosting" else 0, test.width, test.height,
+                **study.display_settings)[0].image) for f in refs}
             # against the reference and its two halves (the judge removes the reference's bias with them)
             by_half = []
             for h in range(3):

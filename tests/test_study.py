@@ -34,7 +34,7 @@ def test_second_run_recomputes_nothing_and_one_changed_parameter_recomputes_one_
     s1, out1 = _run(env, a, b)
     # static + cold and warm ghosting, two techniques
     assert s1["runs_computed"] == 6 and s1["runs_cached"] == 0
-    assert s1["references_rendered"] == 5                               # frame 0 shared by both tests
+    assert s1["references_rendered"] == 2 * 5      # frame 0 shared by both tests; each with its probe (display_of)
     tables = env / "out" / "tables"
     static = (tables / "static_tiny_moving.md").read_text()
     assert "| PSNR (dB) |" in static and "| SSIM |" in static and "Improved vs best" in static
@@ -112,7 +112,8 @@ def test_out_folder_lists_the_report_keeps_the_user_s_files_and_refuses_a_foreig
 def test_a_truncated_reference_is_remade_counted_and_reported_once(env, capfd):
     from references.exr import read_exr
     _run(env, "No AA=noaa")
-    frame0 = [p for p in (env / "cache" / "references").rglob("*.exr") if read_exr(p)[0]["taa_frame"] == 0]
+    frame0 = [p for p in (env / "cache" / "references").rglob("*.exr")
+              if read_exr(p)[0]["taa_frame"] == 0 and read_exr(p)[0]["taa_bound_lsb"] == 0.5]   # not its probe
     assert len(frame0) == 1
     frame0[0].write_bytes(frame0[0].read_bytes()[:3000])
     capfd.readouterr()

@@ -96,7 +96,7 @@ def test_two_concurrent_studies_on_one_cache_compute_each_key_once(tmp_path, sce
     s = [summary(tmp_path / f"s{i}") for i in range(2)]
     assert s[0]["runs_computed"] + s[1]["runs_computed"] == 10           # each run key once
     assert s[0]["metrics_computed"] + s[1]["metrics_computed"] == 10
-    assert s[0]["references_rendered"] + s[1]["references_rendered"] == 5  # 4 moving frames + 1 still
+    assert s[0]["references_rendered"] + s[1]["references_rendered"] == 2 * 5  # 4 moving frames + 1 still, and their probes
     assert numbers(tmp_path / "s0") == numbers(tmp_path / "s1")
 
 
