@@ -84,8 +84,9 @@ def test_reference_halves_are_independent_halves_of_its_samples():
 
 STUDY = """
 name = "eq_{rule}"
-scenes = ["pipe", "hairball_lit", "text_wall"]
+scenes = ["pipe", "hairball_lit", "text_wall", "hairball_rotating_lit"]
 resolution = [96, 54]
+ghosting_skip = ["accumulation"]
 agreement = false
 out = "{out}"
 [[techniques]]
@@ -100,8 +101,10 @@ params = {{ samples = 4 }}
 history = 8
 checkpoints = [8]
 thesis_history = 8
-[protocols]
-ghosting = []
+[[protocols.ghosting]]
+name = "ghosting"
+frames = 2
+warmup = 0
 [precision]
 rule = "{rule}"
 psnr_db = 0.05
@@ -129,7 +132,8 @@ def test_figures_rule_matches_per_pixel_references_on_three_scenes(tmp_path):
     changes, and the references are coarser where the figures allow."""
     new, old = _figures(tmp_path, "figures"), _figures(tmp_path, "per_pixel")
     tol = new["tolerances"]
-    assert set(new["precision"]) == {"pipe", "hairball_lit", "text_wall"}
+    assert set(new["precision"]) == {"pipe", "hairball_lit", "text_wall", "hairball_rotating_lit"}
+    assert set(new["precision"]["hairball_rotating_lit"]) == {"static", "ghosting"}
     tests = [p for per in new["precision"].values() for p in per.values()]
     assert all(not p["over"] for p in tests)
     assert all(p["rounds"][0] == 8.0 and len(p["rounds"]) >= 2 for p in tests)    # probed, then checked finer
@@ -236,3 +240,26 @@ def test_one_display_transform_per_frame_at_every_precision(tmp_path):
     cache = ReferenceCache(tmp_path)
     got = display_of(cache, scene, 0, 32, 18, disp)
     assert got == DisplayTransform.from_reference(cache.get(scene, 0, 32, 18, **disp)[0].image)
+
+
+def test_decide_refines_each_test_on_its_own_and_leaves_a_settled_one_alone():
+    """Round 1 probes both tests at 8 LSB; A settles at the level it asks for, B's drift from the
+    probe sends it on; in round 3 only B's bound changed, so A is neither judged again nor given a
+    drift against itself (b0 = b)."""
+    from study.engine.precision import decide
+    p = Precision()                                   # 8 LSB probe, finest 0.125: 6 levels
+    A, B = ("s", "static"), ("s", "ghosting")
+    levels, before, over, drifts = {}, {}, {}, {}
+    f = ("static", "X", 8, "psnr")
+    finer, judged = decide({A: {f: (40.0, 0.03)}, B: {f: (30.0, 0.012)}}, before, levels, p, over, drifts)
+    # u falls with the bound: A asks ceil(log2(0.03 x 1.5 / 0.01)) = 3 levels (1 LSB), B 1 (4 LSB)
+    assert judged == {A, B} and finer == {A: 3, B: 1} and over[A] and over[B]
+    levels.update(finer)
+    finer, judged = decide({A: {f: (40.004, 0.002)}, B: {f: (30.1, 0.004)}}, before, levels, p, over, drifts)
+    # A: the change 0.004 is within both noises (0.002 + 0.03): no drift, and u 0.002 <= 0.01
+    assert judged == {A, B} and over[A] == [] and drifts[A][f] == 0.0 and A not in finer
+    # B: (0.1 - 0.004 - 0.012) x 4 / (8 - 4) = 0.084 left at 4 LSB: over, on to ceil(log2(...))
+    assert drifts[B][f] == pytest.approx(0.084) and over[B] and finer == {B: 1 + math.ceil(math.log2(0.088 * 1.5 / 0.01))}
+    levels.update(finer)
+    finer, judged = decide({A: {f: (40.004, 0.002)}, B: {f: (30.11, 0.001)}}, before, levels, p, over, drifts)
+    assert judged == {B} and over[A] == [] and drifts[A][f] == 0.0

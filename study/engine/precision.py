@@ -91,3 +91,27 @@ def needed_level(figures: dict, tolerances: dict, level: int, most: int) -> int:
             continue
         want = max(want, level + math.ceil(math.log2(u * MARGIN / tol)))
     return min(want, most)
+
+
+def decide(now: dict, before: dict, levels: dict, precision, over: dict, drifts: dict) -> tuple[dict, set]:
+    """One round of the rule. `now`: test -> its figures ((value, halves' uncertainty) by key, as
+    figures_of gives) at the bound of `levels` (test -> level); `before`: test -> (bound, figures)
+    of the round before, updated here. A test whose bound did not change is left as decided; for
+    the others `over` (test -> the figures over tolerance) and `drifts` (test -> figure -> drift)
+    are set. Returns (test -> the level to render next, the tests judged this round)."""
+    finer, judged = {}, set()
+    for k in sorted(now):
+        level, figs, b = levels.get(k, 0), now[k], precision.bound(levels.get(k, 0))
+        if k in before and before[k][0] == b:
+            continue                       # not refined this round: as decided before
+        judged.add(k)
+        if level > 0:                      # what both halves share: the change from the coarser bound
+            b0 = before[k][0]
+            change, _ = drift(figs, before[k][1], precision.tolerances, b / (b0 - b))
+            drifts[k] = change
+            figs = {f: (v, u + change.get(f, 0.0)) for f, (v, u) in figs.items()}
+        over[k] = over_tolerance(figs, precision.tolerances)
+        if (over[k] or level == 0) and level < precision.levels():
+            finer[k] = needed_level(figs, precision.tolerances, level, precision.levels())
+        before[k] = (b, now[k])
+    return finer, judged

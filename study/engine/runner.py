@@ -22,7 +22,7 @@ from study.config.techniques import TechniqueConfig
 from study.engine.execute import Executor, execute
 from study.engine.plan import Planner
 from study.config.precision import Precision
-from study.engine.precision import drift, figures_of, needed_level, over_tolerance
+from study.engine.precision import decide, figures_of
 from study.engine.results import Artefacts, StudyResults, TestResult, view
 from study.engine.tasks import Context, _deterministic, display_of, load_scene
 
@@ -108,9 +108,8 @@ class Study:
         """Plan, execute and gather; under the figures' precision rule, again for every test with a
         figure over its tolerance (or only probed), its references at the bound its figures ask for,
         until none is or the finest bound is reached (study.engine.precision)."""
-        rounds, tried, over, before = [], {}, {}, {}
+        rounds, tried, over, before = [], {}, {}, {}    # over: (scene, protocol) -> figures over at its bound
         self.drifts = {}              # (scene, protocol) -> (protocol, label, frame, metric) -> drift
-        most = self.precision.levels()
         while True:
             plan, scenes, statics, ghosts, sweeps = self.plan(specs, configs, agreement, sweep, ghosting)
             tests = {(t.scene, t.protocol.name) for t in statics + ghosts + sweeps}
@@ -133,19 +132,8 @@ class Study:
             for t in statics + ghosts + sweeps:        # a sweep shares its protocol's references
                 now.setdefault((t.scene, t.protocol.name), {}).update(
                     {(t.protocol.name, *k): v for k, v in figures_of(self._result(t, results, {})).items()})
-            over, finer = {}, {}
-            for k in sorted(now):
-                level, figs = self.levels.get(k, 0), now[k]
-                if level > 0:        # what both halves share: the change from the coarser bound
-                    b, b0 = self.bound_of(*k), before[k][0]
-                    change, _ = drift(figs, before[k][1], self.precision.tolerances, b / (b0 - b))
-                    self.drifts[k] = change
-                    figs = {f: (v, u + change.get(f, 0.0)) for f, (v, u) in figs.items()}
-                over[k] = over_tolerance(figs, self.precision.tolerances)
-                if (over[k] or level == 0) and level < most:
-                    finer[k] = needed_level(figs, self.precision.tolerances, level, most)
-                before[k] = (self.bound_of(*k), now[k])
-            for k in sorted(set(over) | set(finer)):
+            finer, judged = decide(now, before, self.levels, self.precision, over, self.drifts)
+            for k in sorted(judged):
                 name, b = f"{k[0]} ({k[1]})", self.bound_of(*k)
                 nxt = f"references again at {self.precision.bound(finer[k]):g} LSB" if k in finer else ""
                 if not over[k]:
