@@ -97,7 +97,7 @@ class Summaries:
                   "SSIM Improved − Uncharted, thesis / ours (MATLAB volume SSIM)", "note"]
         # nine columns of text (rankings): wrapped to the page's width, not shrunk to half of it
         widths = [0.13, 0.14, 0.14, 0.085, 0.085, 0.06, 0.055, 0.09, 0.09]
-        self._table("reproduction", Table("Reproduction of the thesis's results (spec section 11)", header, rows,
+        self._table("reproduction", Table("Reproduction of the thesis's results (its static and ghosting figures beside ours)", header, rows,
                                           "Main claim: the improved TAA beats the Uncharted 4 / INSIDE TAA. Columns are the techniques "
                                           "that are the thesis's (registry name, default parameters): "
                                           + ", ".join(f"{c} = {l!r}" for c, l in self.roles.items())
