@@ -110,8 +110,11 @@ class Study:
         until none is or the finest bound is reached (study.engine.precision)."""
         rounds, tried, over, before = [], {}, {}, {}    # over: (scene, protocol) -> figures over at its bound
         self.drifts = {}              # (scene, protocol) -> (protocol, label, frame, metric) -> drift
+        figures = self.precision.rule == "figures"
+        # the agreement (64-256 raster frames a scene) only against the static test's final references
+        agree, settled = agreement and not figures, False
         while True:
-            plan, scenes, statics, ghosts, sweeps = self.plan(specs, configs, agreement, sweep, ghosting)
+            plan, scenes, statics, ghosts, sweeps = self.plan(specs, configs, agree, sweep, ghosting)
             tests = {(t.scene, t.protocol.name) for t in statics + ghosts + sweeps}
             for k in sorted(tests):
                 b, seen = self.bound_of(*k), tried.setdefault(k, [])
@@ -126,7 +129,7 @@ class Study:
                 for mkey, rec in results.pop(key)["records"].items():
                     results[mkey] = {"kind": "metrics", "key": mkey, **rec}
             rounds.append((counts, results))
-            if self.precision.rule != "figures":
+            if not figures or settled:
                 break
             now: dict = {}
             for t in statics + ghosts + sweeps:        # a sweep shares its protocol's references
@@ -146,9 +149,14 @@ class Study:
                          f"{m} of {tech} ({label}, frame {f}) +-{u:.3g} > {tol:.3g}; "
                          + (nxt if k in finer else "the finest bound: reported"))
             if not finer:
-                break
+                if not agreement:
+                    break
+                agree = settled = True       # one more round: the agreements alone (the rest is cached)
             self.levels.update(finer)
-        results = {k: v for _, r in rounds for k, v in r.items()}
+        results: dict = {}
+        for _, r in rounds:       # a task's first round is the one that computed it; later ones find it cached
+            for k, v in r.items():
+                results.setdefault(k, v)
         counts: dict = {}
         for c, _ in rounds:
             for k, n in c.items():
