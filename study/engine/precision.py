@@ -5,12 +5,14 @@ A reference's noise matters only through the figures it is judged into, and thos
 uncertainty is measured, not assumed, in two parts:
   - the noise the two halves of a reference see (study.metrics.uncertainty): random, and the
     bias that scales with the noise's variance, which the jackknife removes;
-  - what both halves share (`drift`): a sliver every sample of a pixel missed, the stopping
-    rule's bias, the jackknife's residual where 8-bit rounding makes a figure's dependence on the
-    noise non-linear. Measured on hairball_lit at 400x225, SSAA 16x's MSE against 4-LSB references
-    stayed 0.56 % above the 0.25-LSB figure after the jackknife, while the halves said +-0.4 %;
-    at 2 LSB it was within 0.2 %. It shrinks with the bound (in proportion, to first order), so
-    the change of a figure from a coarser bound b0 to the bound b estimates what is left of it at b:
+  - what both halves share, or they understate (`drift`): candidates are a sliver every sample
+    of a pixel missed, the stopping rule's bias, a residual the jackknife leaves where 8-bit
+    rounding makes a figure's dependence on the noise non-linear; the cause is not established.
+    Measured: on hairball_lit at 400x225, SSAA 16x's MSE against 4-LSB references stayed 0.56 %
+    above the 0.25-LSB figure after the jackknife, while the halves said +-0.4 % (2 LSB: within
+    0.2 %); at 1600x900 FXAA's MSE on hairball_rotating_lit fell 0.4-0.8 % from 8 to 2 LSB and
+    0.1-0.2 % from 2 to 1 LSB. It shrinks with the bound (taken in proportion), so the change of a
+    figure from a coarser bound b0 to the bound b estimates what is left of it at b:
     change x b / (b0 - b).
 Each test (a scene under one protocol: its static test, each ghosting protocol) has its own bound,
 since their figures need different precisions: a near-converged SSAA 16x on pipe (MSE 0.2) needs
