@@ -62,8 +62,9 @@ def display_of(cache, scene, t: int, w: int, h: int, display_settings: dict):
     the probe bound (study.config.precision), whatever the precision of the references it is
     judged against. Its white point is the brightest pixel, a noisy extreme: on frame 0 of
     hairball_rotating_lit at 1600x900 it was 1.0344 at 2 LSB and 1.0352 at 8, either side of
-    1.03 / 1.04 to 3 digits, and every figure moved with it. One reference per frame gives one transform at every precision and
-    under either rule; a probe is ~6 % of a 0.5-LSB reference's samples."""
+    1.03 / 1.04 to 3 digits, and every figure moved with it. One reference per frame gives one
+    transform at every precision and under either rule; a probe is ~6 % of a 0.5-LSB reference's
+    samples."""
     from display import DisplayTransform
     return DisplayTransform.from_reference(cache.get(scene, t, w, h, **display_settings)[0].image)
 
