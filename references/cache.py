@@ -9,7 +9,7 @@ the linear standard error (`stderr.R/G/B`), the display-domain standard error
 (`display_floor.R/G/B`, references/render.py), the split into two independent halves
 (`half_delta.R/G/B`: half A = RGB + delta, half B = RGB - delta) and the samples per pixel (`spp`), and its header
 the bound, seconds, mean/max spp, 99.9th percentile and max SE in LSB, the pixels over the bound
-and those whose SE is the floor. Files are written atomically (references/exr.py), so an
+(and the samples the worst of them would take) and those whose SE is the floor. Files are written atomically (references/exr.py), so an
 interrupted render leaves nothing; a file that fails to read, lacks its key or holds NaN/Inf is
 reported, removed and rendered again.
 """
@@ -83,7 +83,7 @@ class ReferenceCache:
             return Reference(img, se, int(h["taa_spp"]), int(h["taa_passes"]), float(h["taa_seconds"]),
                              float(h["taa_noise_psnr_db"]), key, spp_map=spp, display_stderr=dse,
                              bound_lsb=float(h["taa_bound_lsb"]), rounds=int(h["taa_rounds"]), _history=history,
-                             display_floor=floor, half_delta=half)
+                             display_floor=floor, half_delta=half, spp_needed=int(h.get("taa_spp_needed", 0)))
         except Exception as exc:
             self.log(f"reference cache: {path} is corrupt ({exc}); removing it and rendering again")
             path.unlink(missing_ok=True)
@@ -97,6 +97,7 @@ class ReferenceCache:
                   "taa_spp_mean": float(ref.spp_mean), "taa_spp_max": int(ref.spp_max),
                   "taa_se_p999_lsb": float(ref.se_p999_lsb), "taa_se_max_lsb": float(ref.se_max_lsb),
                   "taa_over_bound": int(ref.over_bound), "taa_floor_bound": int(ref.floor_bound),
+                  "taa_spp_needed": int(ref.spp_needed),
                   "taa_code": code_version(),
                   "taa_convergence": json.dumps([[int(round(a)), round(float(b), 4), round(float(c), 3),
                                                   round(float(d), 3)] for a, b, c, d in ref.noise_history])}

@@ -2,11 +2,14 @@
 
 A pixel's value is the plain mean of all its samples; its standard error (SE) comes from the
 spread of independent estimates, in linear HDR and, through the Jacobian of the display
-transform at the mean (spec section 8, key frozen from the first pass, channels' covariance
-kept), in display units. The bound is on the worst channel, 0.5 LSB of 8 bits by default.
+transform at the mean (spec section 8, channels' covariance kept), in display units: the
+transform of the current mean, re-derived after every round, so that the bound holds in the
+display domain of the converged image, the one the study judges in. The bound is on the worst channel, 0.5 LSB of 8 bits by default.
 
 1. Pilot: `min_passes` independent sets of `spp_per_pass` samples at every pixel (the cache uses
-   4 x 2), each a jittered grid over the pixel traced through the Mitsuba sensor and BVH with
+   4 x 2), each an Owen-scrambled Sobol' net over the pixel with a scramble of its own (a
+   power of two of samples, stratified in every cell shape of that size: references/tracer.py),
+   traced through the Mitsuba sensor and BVH with
    `shading.trace_visible` and `shading.shade` (the raster's function); transport 'path' calls
    Mitsuba's path integrator per ray the same way (its other dimensions from an independent
    sampler). The spread of the sets is the pilot's noise estimate; each pixel also keeps its
@@ -96,6 +99,9 @@ class Reference:
     rounds: int = 0                            # adaptive rounds after the pilot
     display_floor: np.ndarray | None = None    # (H, W, 3) the unseen-feature part of display_stderr
     half_delta: np.ndarray | None = None       # (H, W, 3) linear: half A = image + delta, B = image - delta
+    # what the pixels still over the bound at the cap would take: the largest count predicted
+    # from their SE as at every round (SE ~ 1/sqrt(M), ~ 1/M for the floor); 0 when none is over
+    spp_needed: int = 0
     _history: list = field(default_factory=list, repr=False)
 
     @property
@@ -262,8 +268,9 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
     if min_passes < 2 or replicates < 2 or min_passes % 2 or replicates % 2:
         raise ReferenceError(f"min_passes and replicates must be even and >= 2 (the noise is estimated "
                              f"from them, and the reference is split into two halves), got {min_passes}, {replicates}")
-    if se_bound_lsb <= 0 or spp_per_pass < 1:
-        raise ReferenceError(f"se_bound_lsb must be > 0 and spp_per_pass >= 1, got {se_bound_lsb}, {spp_per_pass}")
+    if se_bound_lsb <= 0 or spp_per_pass < 1 or spp_per_pass & (spp_per_pass - 1):
+        raise ReferenceError(f"se_bound_lsb must be > 0 and spp_per_pass a power of two (a set is a whole "
+                             f"Sobol' net), got {se_bound_lsb}, {spp_per_pass}")
     cam = scene.camera(t, width, height)
     path = scene.desc.transport == "path"
     if path and any(a is not None for a in scene.alphas):
@@ -289,7 +296,7 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
             progress(int(round(spp)), db)
 
     tracer = _PixelTracer(scene, cam, path, mscene, integ, geo)
-    # Pilot: min_passes independent jittered sets of spp_per_pass at every pixel, which also
+    # Pilot: min_passes independent sets (nets) of spp_per_pass at every pixel, which also
     # give each pixel's smallest and largest sample (the unseen-feature floor below).
     pilot = np.empty((npix, min_passes, 3), np.float32)
     lo, hi = np.empty((npix, 3)), np.empty((npix, 3))
@@ -298,10 +305,12 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
         if not np.all(np.isfinite(sums)):
             raise ReferenceError(f"scene {scene.name!r} frame {t}: the pilot produced NaN/Inf")
         pilot[g], lo[g], hi[g] = sums / spp_per_pass, glo, ghi
-    # the key of one pass is the converged key to a few digits
-    disp = DisplayTransform.from_reference(pilot[:, 0].reshape(height, width, 3))
     est = _Estimates(pilot, spp_per_pass, r)
     del pilot
+    # the transform of the current mean, re-derived after every round: a pass of a few samples
+    # can put it far off (thin bright lines on black: 4.4x the exposure, white 22x), and the
+    # bound must hold in the domain the study judges in, the converged image's
+    disp = DisplayTransform.from_reference(est.mean.reshape(height, width, 3))
     dse_s = np.zeros((npix, 3))           # from the spread of the samples
     dse_s[est.varies] = _display_se(disp, est.mean[est.varies], est.cov[est.varies])
     floor_d, floor_l = np.zeros((npix, 3)), np.zeros((npix, 3))
@@ -311,8 +320,11 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
         whi = _window(hi.reshape(height, width, 3), np.maximum).reshape(npix, 3)[where]
         floor_d[where], floor_l[where] = _unseen_floor(disp, est.mean[where], wlo, whi, est.spp[where])
 
-    update_floor(np.flatnonzero(np.any(_window(hi.reshape(height, width, 3), np.maximum) >
-                                       _window(lo.reshape(height, width, 3), np.minimum), axis=-1).ravel()))
+    def contrast() -> np.ndarray:          # pixels whose 3x3 window holds more than one value
+        return np.flatnonzero(np.any(_window(hi.reshape(height, width, 3), np.maximum) >
+                                     _window(lo.reshape(height, width, 3), np.minimum), axis=-1).ravel())
+
+    update_floor(contrast())
     dse = np.maximum(dse_s, floor_d)
     record(est, dse)
 
@@ -344,11 +356,12 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
             continue
         pix = np.flatnonzero(over)
         m = est.m[pix]
-        # a power of two (a square-ish jittered grid); the first set _FIRST_MIN.._FIRST_MAX,
+        # a power of two (one whole net); the first set _FIRST_MIN.._FIRST_MAX,
         # later ones at most 3 m; never past the cap
         most = np.where(m == 0, _FIRST_MAX, 2 ** np.floor(np.log2(np.maximum((_GROWTH - 1) * m, 1))))
         add = np.minimum(2 ** np.ceil(np.log2(np.maximum(want[pix], np.where(m == 0, _FIRST_MIN, 1)))), most)
-        add = np.minimum(add, cap - m).astype(np.int64)
+        # never past the cap: a set's size stays a power of two (a whole net)
+        add = (2 ** np.floor(np.log2(np.minimum(add, cap - m)))).astype(np.int64)
         rng = np.random.default_rng([seed, 9, rounds])
         for a in np.unique(add):          # one set size per group of pixels
             for g, sums, glo, ghi in tracer.chunked(pix[add == a], r, int(a), rng):
@@ -361,11 +374,21 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
         touched = np.zeros(npix, bool)
         touched[pix] = True
         update_floor(np.flatnonzero(_dilate(touched.reshape(height, width)).ravel()))
+        now = DisplayTransform.from_reference(est.mean.reshape(height, width, 3))
+        if now != disp:                   # (to 3 digits) every pixel's display error moves with it
+            disp = now
+            noisy = np.flatnonzero(np.any(np.diagonal(est.cov, axis1=1, axis2=2) > 0, axis=-1))
+            dse_s[:] = 0.0
+            dse_s[noisy] = _display_se(disp, est.mean[noisy], est.cov[noisy])
+            update_floor(contrast())
         dse = np.maximum(dse_s, floor_d)
         rounds += 1
         record(est, dse)
 
     spp_map = est.spp.reshape(height, width)
+    b0 = se_bound_lsb * LSB
+    missed = dse.max(axis=-1) > b0 * (1 + 1e-5)
+    needed = np.maximum(est.spp * (dse_s.max(axis=-1) / b0) ** 2, est.spp * (floor_d.max(axis=-1) / b0))[missed]
     lin_se = np.maximum(est.linear_se(), floor_l)
     return Reference(est.mean.reshape(height, width, 3).astype(np.float32),
                      lin_se.reshape(height, width, 3).astype(np.float32),
@@ -373,4 +396,5 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
                      spp_map=spp_map.astype(np.int32), display_stderr=dse.reshape(height, width, 3).astype(np.float32),
                      bound_lsb=float(se_bound_lsb), rounds=rounds, _history=history,
                      display_floor=floor_d.reshape(height, width, 3).astype(np.float32),
-                     half_delta=est.half_delta().reshape(height, width, 3).astype(np.float32))
+                     half_delta=est.half_delta().reshape(height, width, 3).astype(np.float32),
+                     spp_needed=int(np.ceil(needed.max())) if len(needed) else 0)

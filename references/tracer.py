@@ -3,8 +3,6 @@ stratified sets of samples per pixel for the adaptive reference, and one ray per
 the agreement check."""
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from backend import dr, mi
@@ -16,16 +14,49 @@ from .mitsuba_scene import sensor
 _CHUNK_RAYS = 1 << 22    # rays per Dr.Jit launch
 
 
-def _strata(p: int) -> tuple[int, int]:
-    sx = max(d for d in range(1, math.isqrt(p) + 1) if p % d == 0)
-    return sx, p // sx
+_NET_BITS = 16           # a set holds at most 2^16 samples (render_reference's cap per replicate)
+# Sobol's second dimension: bit b of the index flips row b of the upper-triangular Pascal matrix
+# mod 2 (x ^= v, v ^= v >> 1 from v = 2^31), as Mitsuba's sobol_2
+_SOBOL_ROWS = []
+_v = 1 << 31
+for _ in range(_NET_BITS):
+    _SOBOL_ROWS.append(_v)
+    _v ^= _v >> 1
+
+
+def _owen(x, seed):
+    """Nested uniform (Owen) scramble of the 32-bit fractions x, one permutation tree per seed:
+    Laine and Karras's hash on the bit-reversed value, whose low bits are the fraction's leading
+    digits, so each digit is permuted as a function of the digits above it (Burley 2020)."""
+    x = dr.brev(x)
+    x ^= x * 0x3D20ADEA
+    x += seed
+    x *= (seed >> 16) | 1
+    x ^= x * 0x05526C56
+    x ^= x * 0x53A22864
+    return dr.brev(x)
+
+
+def net_points(j, seed0, seed1):
+    """Point j (UInt32, < 2^16) of the Owen-scrambled Sobol' (0,2)-sequence whose two dimensions
+    are scrambled by seed0 and seed1: the first 2^m points of one scramble are a (0,m,2)-net,
+    one point in each of the 2^m cells of every shape 2^-k x 2^-(m-k), each uniform over [0,1)^2."""
+    x0 = dr.brev(j)                                   # van der Corput
+    x1 = dr.zeros(mi.UInt32, dr.width(j))
+    for b, row in enumerate(_SOBOL_ROWS):
+        x1 = dr.select(((j >> b) & 1) != 0, x1 ^ row, x1)
+    scale = mi.Float(2.0 ** -24)                      # the leading 24 bits: float32 in [0, 1)
+    return mi.Float(_owen(x0, seed0) >> 8) * scale, mi.Float(_owen(x1, seed1) >> 8) * scale
 
 
 class _PixelTracer:
     """Sums of sets of rays through given pixels, from the reference's own sensor and shading
-    (direct transports) or Mitsuba's path integrator (transport 'path'). A set of a samples is
-    a jittered sx x sy grid over the pixel (one uniform sample per cell), so every sample is
-    uniform over the pixel's area and the set is stratified."""
+    (direct transports) or Mitsuba's path integrator (transport 'path'). A set of a samples
+    (a power of two) is an Owen-scrambled Sobol' net over the pixel with a scramble of its own:
+    every sample is uniform over the pixel's area, the sets are independent of one another, and
+    each set is stratified in every cell shape of its size at once. A jittered sx x sy grid is
+    one of those shapes; the others (2^m x 1 ... 1 x 2^m) are what many thin texel edges and
+    lines at one orientation need, as on a minified texture at a grazing angle."""
 
     def __init__(self, scene: ResolvedScene, cam, path: bool, mscene, integ, geo):
         self.w, self.h = cam.width, cam.height
@@ -39,18 +70,16 @@ class _PixelTracer:
         """For each pixel, r independent sets of a samples: their sums (len(pix), r, 3), and the
         smallest and largest sample of all r a, per channel (len(pix), 3) each."""
         n = len(pix) * r * a
+        if a & (a - 1) or a > 1 << _NET_BITS:
+            raise ValueError(f"a set holds a power of two samples up to 2^{_NET_BITS}, got {a}")
         # opaque: literal sizes and seeds would be compiled into the kernel, one kernel per call
-        sx, sy = (dr.opaque(mi.UInt32, x) for x in _strata(a))
         a_, ra = dr.opaque(mi.UInt32, a), dr.opaque(mi.UInt32, r * a)
         idx = dr.arange(mi.UInt32, n)
-        j = idx % a_
         p = dr.gather(mi.UInt32, mi.UInt32(pix.astype(np.uint32)), idx // ra)
-        # PCG32 streams that differ only in a nearby sequence number are correlated: hash the
-        # state from (seed, index) with TEA, as Mitsuba's independent sampler does
-        s0, s1 = mi.sample_tea_32(dr.opaque(mi.UInt32, int(seed) & 0xFFFFFFFF), idx)
-        rng = mi.PCG32(size=n, initstate=mi.UInt64(s0) | (mi.UInt64(s1) << 32), initseq=mi.UInt64(idx))
-        u = (mi.Float(j % sx) + rng.next_float32()) / mi.Float(sx)
-        v = (mi.Float(j // sx) + rng.next_float32()) / mi.Float(sy)
+        # one scramble per set, hashed from (seed, set) with TEA as Mitsuba's independent sampler
+        # seeds its streams (nearby seeds of a plain hash would give correlated scrambles)
+        s0, s1 = mi.sample_tea_32(dr.opaque(mi.UInt32, int(seed) & 0xFFFFFFFF), idx // a_, 8)
+        u, v = net_points(idx % a_, s0, s1)
         pos = mi.Point2f((mi.Float(p % self.w) + u) / self.w, (mi.Float(p // self.w) + v) / self.h)
         if not self.path:
             ray, _ = self.sens.sample_ray(0.0, 0.5, pos, mi.Point2f(0.5, 0.5))

@@ -1,11 +1,13 @@
 """Reference cost and per-pixel noise: pipe, atrium, hairball_rotating_lit at 320x180 and pipe at
-1600x900, rendered into a temporary cache (issue 9).
+1600x900 (issue 9), or with --textured the three textured example scenes of
+scenes/examples/textured/ at 320x180 (issue 22), rendered into a temporary cache.
 
 Prints seconds, mean/max spp, the 99.9th percentile and max display-domain standard error in LSB
 (8-bit), the count of pixels over the bound and of those whose SE is the unseen-feature floor. A reference that records no display-domain error
-(older code) gets it from its linear error by the delta method, marked "(delta)".
+(older code) gets it from its linear error by the delta method, marked "(delta)". "needed": the
+samples the worst pixel still over the bound would take, predicted by the renderer ("-": older code).
 
-    .venv/bin/python scripts/bench_reference.py [--skip-full] [--only SCENE@WxH ...]
+    .venv/bin/python scripts/bench_reference.py [--skip-full] [--textured] [--only SCENE@WxH ...]
 """
 from __future__ import annotations
 
@@ -25,6 +27,8 @@ from references import ReferenceCache  # noqa: E402
 from scenes import get_scene  # noqa: E402
 
 CASES = [("pipe", 320, 180), ("atrium", 320, 180), ("hairball_rotating_lit", 320, 180), ("pipe", 1600, 900)]
+_EXAMPLES = Path(__file__).resolve().parent.parent / "scenes" / "examples" / "textured"
+TEXTURED = [(str(_EXAMPLES / f"{n}.toml"), 320, 180) for n in ("checker_grazing", "thin_lines", "leaf")]
 BOUND_LSB = 0.5
 
 
@@ -45,19 +49,21 @@ def delta_display_se(img: np.ndarray, se: np.ndarray) -> np.ndarray:
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--skip-full", action="store_true", help="skip pipe at 1600x900")
+    ap.add_argument("--textured", action="store_true", help="the textured example scenes (issue 22)")
     ap.add_argument("--only", nargs="*", help="cases as SCENE@WxH")
     args = ap.parse_args()
-    cases = CASES
+    cases = TEXTURED if args.textured else CASES
     if args.only:
         cases = [(c.split("@")[0], *map(int, c.split("@")[1].split("x"))) for c in args.only]
     elif args.skip_full:
         cases = [c for c in CASES if c[1] < 1600]
     print(f"{'case':32s} {'wall s':>7s} {'ref s':>7s} {'mean spp':>9s} {'max spp':>8s} "
-          f"{'p99.9 LSB':>9s} {'max LSB':>8s} {'over':>7s} {'floor':>7s} {'noise dB':>8s}", flush=True)
+          f"{'p99.9 LSB':>9s} {'max LSB':>8s} {'over':>7s} {'floor':>7s} {'noise dB':>8s} {'needed':>9s}", flush=True)
     with tempfile.TemporaryDirectory() as tmp:
         cache = ReferenceCache(tmp)
         for name, w, h in cases:
             scene = get_scene(name)
+            name = Path(name).stem
             t0 = time.perf_counter()
             ref, _ = cache.get(scene, 0, w, h)
             wall = time.perf_counter() - t0
@@ -71,7 +77,8 @@ def main() -> None:
             over = int(np.sum(lsb > BOUND_LSB * (1 + 1e-5)))    # float32 storage slack
             floor = getattr(ref, "floor_bound", 0)
             print(f"{name + f' {w}x{h}':32s} {wall:7.2f} {ref.seconds:7.2f} {spp.mean():9.1f} {int(spp.max()):8d} "
-                  f"{np.percentile(lsb, 99.9):9.3f} {lsb.max():8.3f} {over:7d} {floor:7d} {ref.noise_psnr_db:8.2f}{tag}",
+                  f"{np.percentile(lsb, 99.9):9.3f} {lsb.max():8.3f} {over:7d} {floor:7d} {ref.noise_psnr_db:8.2f} "
+                  f"{getattr(ref, 'spp_needed', '-'):>9}{tag}",
                   flush=True)
 
 

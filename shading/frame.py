@@ -51,6 +51,8 @@ def _texture_table(textures, channels):
             continue
         t = np.asarray(tex, np.float32)
         t = t.reshape(t.shape[0], t.shape[1], -1)[..., :channels]
+        if t.shape[-1] < channels:         # a grey (H, W) texture is every channel's value
+            t = np.repeat(t[..., :1], channels, axis=-1)
         stored[id(tex)] = [pos, t.shape[1], t.shape[0]]
         offsets += stored[id(tex)]
         data.append(t.ravel())

@@ -1,6 +1,7 @@
 """Comparison figures with insets (study.reporting.figures) on synthetic images, and the paper's PDF
 (study.reporting.paper_pdf + paper/main.tex) built from a real tiny study's tables and figures where LaTeX is
-installed (`make paper` installs it; elsewhere that test is skipped with the reason)."""
+installed (`make test` and `make paper` install it; a plain pytest run elsewhere skips it with the
+reason, `make test` fails instead)."""
 import io
 import re
 import shutil
@@ -97,9 +98,15 @@ def test_tables_get_a_label_after_their_caption():
 
 # -- the PDF -------------------------------------------------------------------------------------------
 def _latex_missing():
+    """Why the PDF cannot be built here, or None. Under `make test` (TAA_REQUIRE_LATEX=1, after it
+    installed TeX) a missing toolchain fails the test: CI must build the paper, not skip it."""
+    import os
     for exe in ("pdflatex", "latexmk"):
         if shutil.which(exe) is None:
-            return f"{exe} is not installed (`make paper` installs a LaTeX toolchain: scripts/setup_latex.sh)"
+            why = f"{exe} is not installed (`make test` and `make paper` install it: scripts/setup_latex.sh)"
+            if os.environ.get("TAA_REQUIRE_LATEX") == "1":
+                pytest.fail(f"TAA_REQUIRE_LATEX=1 but {why}")
+            return why
     return None
 
 

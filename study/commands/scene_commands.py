@@ -49,7 +49,9 @@ def _print_agreement(a) -> None:
                f"{' (cached)' if a.reference_cached else ''}, noise PSNR {a.reference_noise_psnr_db:.2f} dB"
                f"  [target >= {TARGETS['reference_noise_psnr_db']}: {mark[ok['reference_noise_psnr_db']]}]")
     click.echo(f"  reference per-pixel SE: bound {a.reference_se_bound_lsb:g} LSB, p99.9 {a.reference_se_p999_lsb:.3f}, "
-               f"max {a.reference_se_max_lsb:.3f}, {a.reference_over_bound} pixels over  "
+               f"max {a.reference_se_max_lsb:.3f}, {a.reference_over_bound} pixels over"
+               + (f" (at the cap; the worst would take ~{a.reference_spp_needed} spp)" if a.reference_over_bound else "")
+               + "  "
                f"[{'held' if ok['reference_bound'] else 'BOUND MISSED'}]")
     click.echo(f"  objects visible at {100 * a.visible_fraction:.1f} % of pixel centres  "
                f"[{'ok' if ok['objects_visible'] else 'NOTHING TO COMPARE: background only'}]")

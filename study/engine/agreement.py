@@ -58,6 +58,7 @@ class Agreement:
     reference_se_max_lsb: float = 0.0
     reference_over_bound: int = 0
     reference_spp_max: int = 0
+    reference_spp_needed: int = 0     # what the worst pixel over the bound would take (0: none over)
     visible_fraction: float = 1.0     # pixel centres that hit an object, in both renderers
     agreement_u_db: float = 0.0       # the reference's share of agreement_psnr_db's uncertainty
 
@@ -139,7 +140,7 @@ def check_agreement(scene: ResolvedScene, width: int, height: int, *, frame: int
                      transport=scene.desc.transport, reference_se_bound_lsb=ref.bound_lsb,
                      reference_se_p999_lsb=ref.se_p999_lsb, reference_se_max_lsb=ref.se_max_lsb,
                      reference_over_bound=ref.over_bound, reference_spp_max=ref.spp_max,
-                     visible_fraction=visible, agreement_u_db=agreement_u)
+                     reference_spp_needed=ref.spp_needed, visible_fraction=visible, agreement_u_db=agreement_u)
 
 
 # -- agreement of a scene -------------------------------------------------------------------------------

@@ -161,18 +161,21 @@ class Summaries:
     def convergence(self, refs: dict) -> None:
         """The references' own convergence: cost and per-pixel noise (scene -> Reference)."""
         rows = [[name, f"{r.seconds:.2f}", f"{r.spp_mean:.0f}", str(r.spp_max), f"{r.se_p999_lsb:.3f}",
-                 f"{r.se_max_lsb:.3f}", str(r.over_bound), f"{r.noise_psnr_db:.2f}"] for name, r in refs.items()]
+                 f"{r.se_max_lsb:.3f}", str(r.over_bound), str(r.spp_needed) if r.over_bound else "-",
+                 f"{r.noise_psnr_db:.2f}"] for name, r in refs.items()]
         if not rows:
             return
         bounds = sorted({r.bound_lsb for r in refs.values()})
         held = sum(r.over_bound for r in refs.values()) == 0
         note = (f"Bound: every pixel's display-domain standard error <= {', '.join(f'{b:g}' for b in bounds)} LSB "
                 f"(8-bit); {'held at every pixel' if held else 'pixels over it hit the sample cap'}. "
-                "SE in LSB of the worst channel; noise PSNR (mean over pixels) is the secondary figure.")
+                "SE in LSB of the worst channel; noise PSNR (mean over pixels) is the secondary figure. "
+                "Worst would take: the samples the worst pixel over the bound would need, predicted from its "
+                "SE as SE ~ 1/sqrt(spp) (an upper estimate where the sample sets stratify its detail).")
         self._table("reference_convergence", Table(
             "Reference convergence (static frame): cost and per-pixel standard error",
             ["scene", "seconds", "mean spp", "max spp", "SE p99.9 (LSB)", "SE max (LSB)", "pixels over bound",
-             "noise PSNR (dB)"], rows, note), {n: r.key for n, r in refs.items()})
+             "worst would take (spp)", "noise PSNR (dB)"], rows, note), {n: r.key for n, r in refs.items()})
         if any(r.noise_history for r in refs.values()):
             self._file("plots/reference_convergence.png", lambda: plots.convergence(refs), {n: r.key for n, r in refs.items()})
 
