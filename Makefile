@@ -17,7 +17,7 @@ study: $(STAMP)
 # instead of skipping (TAA_REQUIRE_LATEX).
 test: $(STAMP)
 	bash scripts/setup_latex.sh
-	TAA_REQUIRE_LATEX=1 $(PY) -m pytest -q
+	TAA_REQUIRE_LATEX=1 $(PY) -m pytest -q --durations=20
 
 # A LaTeX toolchain when missing (scripts/setup_latex.sh, as `make test`), then
 # `taa-study paper`: the study (make-style, cached), its tables and figures into paper/generated/,

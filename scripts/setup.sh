@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Installs everything the project needs on a fresh Debian machine: the system libraries (a libLLVM
 # that Dr.Jit accepts, Mesa's EGL for headless OpenGL, Chromium and its WebDriver for the HTML
-# report's browser test) and a virtual environment in .venv. LaTeX is `make paper`'s alone
-# (scripts/setup_latex.sh).
+# report's browser test) and a virtual environment in .venv. LaTeX is installed by `make paper`
+# and `make test` (scripts/setup_latex.sh), not here: `make study` does not need it.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 

@@ -77,9 +77,18 @@ def test_ab_reports_paired_differences_and_gates(env):
     assert lo <= out["overall"]["psnr"]["mean"] <= hi
     # Xu's unnormalised kernel over-sharpens: B is worse, and the gate says so with exit 1.
     assert out["overall"]["psnr"]["mean"] < 0 and "psnr" in out["failed"] and r.exit_code == 1
+    # it says what it computed: both techniques' static and warm ghosting runs, and the references
+    assert out["recomputed"]["runs_computed"] == 4 and out["recomputed"]["references_rendered"] > 0
     r = CliRunner().invoke(main, base + ["taa_baseline:sharpen=xu", "taa_baseline:sharpen=normalised",
                                          "--max-worse", "psnr=0.0"], catch_exceptions=False)
     assert r.exit_code == 0 and json.loads(r.stdout)["failed"] == {}
+    assert json.loads(r.stdout)["recomputed"] == {"runs_computed": 0, "metrics_computed": 0, "references_rendered": 0,
+                                                  "runs_cached": 4}
+    # one technique changed: only its runs (A's are cached); its figures may ask for finer
+    # references (the figures' precision rule), and the line says how many were rendered
+    r = CliRunner().invoke(main, ["ab", "--scenes", str(env / "tiny.toml"), "taa_baseline:sharpen=xu",
+                                  "taa_baseline:sharpen=none"], catch_exceptions=False)
+    assert "recomputed: 2 runs (2 cached)" in r.output and " references rendered" in r.output, r.output
     r = CliRunner().invoke(main, base + ["taa_baseline", "taa_improved", "--max-worse", "psnr"])
     assert r.exit_code == 2 and "METRIC=THRESHOLD" in r.output
 

@@ -43,6 +43,7 @@ class ABResult:
     per_scene: dict = field(default_factory=dict)   # scene -> metric -> {mean, ci, n}
     overall: dict = field(default_factory=dict)     # metric -> {mean, ci, n}
     ms: dict = field(default_factory=dict)          # {"a": ms, "b": ms, "diff": ms}
+    recomputed: dict = field(default_factory=dict)  # what this call computed (the rest was cached)
 
     def worse_by(self, metric: str) -> float:
         """How much worse B is than A on average (positive = worse), in the metric's units."""
@@ -52,7 +53,13 @@ class ABResult:
         return -d if HIGHER_IS_BETTER.get(metric, False) else d
 
     def as_dict(self) -> dict:
-        return {"a": self.a, "b": self.b, "per_scene": self.per_scene, "overall": self.overall, "ms": self.ms}
+        return {"a": self.a, "b": self.b, "per_scene": self.per_scene, "overall": self.overall, "ms": self.ms,
+                "recomputed": self.recomputed}
+
+    def recomputed_line(self) -> str:
+        r = self.recomputed
+        return (f"recomputed: {r.get('runs_computed', 0)} runs ({r.get('runs_cached', 0)} cached), "
+                f"{r.get('metrics_computed', 0)} metric sets, {r.get('references_rendered', 0)} references rendered")
 
 
 def _summary(diffs: list[float]) -> dict:
@@ -73,7 +80,7 @@ def compare(a: TechniqueConfig, b: TechniqueConfig, scenes, profile: str = "quic
     warm = tuple(p for p in study.profile.ghosting if p.warmup) or study.profile.ghosting
     study.profile = dataclasses.replace(study.profile, ghosting=warm)
     out = study.run(list(scenes), [a, b], agreement=False)
-    res = ABResult(a.label, b.label)
+    res = ABResult(a.label, b.label, recomputed={k: v for k, v in out.stats.items() if k != "tasks"})
     overall = {m: [] for m in AB_METRICS}
     per_scene: dict = {}
     tests = list(out.views.values())[-1] + [g for gs in out.ghosts.values() for g in gs]

@@ -219,6 +219,7 @@ def ab(a, b, scene_list, profile, study_file, gates, as_json, workers, threads, 
                 cells.append(f"{m} {mean} {ci} n={v['n']}")
             click.echo(f"  {scene:18s} " + "; ".join(cells))
         click.echo(f"  cost: A {res.ms['a']:.2f} ms, B {res.ms['b']:.2f} ms per frame ({res.ms['diff']:+.2f} ms)")
+        click.echo(f"  {res.recomputed_line()}")
         for m, w in failed.items():
             click.echo(f"  GATE FAILED: B is worse than A on {m} by {w:.4g} (> {limits[m]})" if math.isfinite(w)
                        else f"  GATE FAILED: {m} has no finite pair to judge")
