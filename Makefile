@@ -14,10 +14,13 @@ study: $(STAMP)
 	$(PY) -m study run --profile quick
 
 # The suite builds the paper: TeX is installed first, and a PDF test that finds no TeX fails
-# instead of skipping (TAA_REQUIRE_LATEX).
+# instead of skipping (TAA_REQUIRE_LATEX). It runs in TEST_WORKERS processes (pytest-xdist; the
+# cores, at most 4: each process holds its own Mitsuba and Dr.Jit), a test file per process at a
+# time so that module fixtures are made once; TEST_WORKERS=0 runs it in this process.
+TEST_WORKERS ?= $(shell n=$$(nproc); [ $$n -gt 4 ] && n=4; echo $$n)
 test: $(STAMP)
 	bash scripts/setup_latex.sh
-	TAA_REQUIRE_LATEX=1 $(PY) -m pytest -q --durations=20
+	TAA_REQUIRE_LATEX=1 $(PY) -m pytest -q --durations=20 -n $(TEST_WORKERS) --dist loadfile
 
 # A LaTeX toolchain when missing (scripts/setup_latex.sh, as `make test`), then
 # `taa-study paper`: the study (make-style, cached), its tables and figures into paper/generated/,

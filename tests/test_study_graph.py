@@ -2,6 +2,7 @@
 worker's task run again, and two studies on one cache computing each key once. Clusters run in
 their own processes (as a user would start them), so no event loop outlives a test."""
 import os
+import shutil
 import signal
 import socket
 import subprocess
@@ -59,7 +60,10 @@ def test_local_cluster_gives_the_in_process_numbers_and_survives_a_killed_worker
     assert numbers(tmp_path / "b") == numbers(tmp_path / "a")
 
     # A scheduler and two workers; one worker is killed (SIGKILL) once the first run is filed.
+    # Its cache starts with the references the in-process study made (content-keyed files): the
+    # cluster has just rendered its own in cache_b, and what this part proves is the recovery.
     env = {**os.environ, "TAA_STUDY_CACHE": str(tmp_path / "cache_c")}
+    shutil.copytree(tmp_path / "cache_a" / "references", tmp_path / "cache_c" / "references")
     port = _free_port()
     addr = f"tcp://127.0.0.1:{port}"
     procs = [subprocess.Popen([str(BIN / "dask"), "scheduler", "--host", "127.0.0.1", "--port", str(port),
