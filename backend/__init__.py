@@ -83,4 +83,15 @@ try:
 except Exception as exc:  # an unknown or unavailable variant (cuda without a GPU)
     raise BackendError(f"Mitsuba variant {VARIANT!r} is not available here: {exc}") from exc
 
-__all__ = ["dr", "mi", "VARIANT", "BackendError", "find_libllvm"]
+
+
+def opaque(cls, *values):
+    """A Dr.Jit value of type `cls` (mi.Float, mi.Vector3f, mi.Color3f, ...) from Python numbers,
+    held in memory rather than compiled into the kernel as a literal: a per-frame camera, jitter
+    or light as a literal makes every frame's kernel new, to be compiled again (and again on every
+    new machine); opaque, one kernel serves every frame and scene of the same structure."""
+    comps = [dr.opaque(mi.Float, float(v)) for v in values]
+    return comps[0] if cls is mi.Float else cls(*comps)
+
+
+__all__ = ["dr", "mi", "VARIANT", "BackendError", "find_libllvm", "opaque"]

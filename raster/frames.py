@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from backend import dr, mi
+from backend import dr, mi, opaque
 from scenes import ResolvedScene
 from scenes.camera import CameraState
 from shading import Surface, albedo_at, frame_geometry, shade
@@ -30,7 +30,7 @@ BUFFERS = ("color", "albedo", "depth", "object_id", "prim_id", "normal", "motion
 
 
 def _vec(m: np.ndarray, col: int) -> mi.Vector3f:
-    return mi.Vector3f(*(float(c) for c in m[:3, col]))
+    return opaque(mi.Vector3f, *m[:3, col])
 
 
 def image_position(cam: CameraState, p: mi.Point3f):
@@ -38,14 +38,14 @@ def image_position(cam: CameraState, p: mi.Point3f):
     d = p - _vec(cam.to_world, 3)
     x, y, z = (dr.dot(d, _vec(cam.to_world, k)) for k in range(3))
     depth = -z
-    tx, ty = cam.tan_half
+    tx, ty = (opaque(mi.Float, v) for v in cam.tan_half)
     return mi.Point2f((x / depth / tx + 1) * 0.5 * cam.width, (1 - y / depth / ty) * 0.5 * cam.height), depth
 
 
 def _direction_position(cam: CameraState, d: mi.Vector3f) -> mi.Point2f:
     """Image position of a direction (a point at infinity): background motion is rotation only."""
     x, y, z = (dr.dot(d, _vec(cam.to_world, k)) for k in range(3))
-    tx, ty = cam.tan_half
+    tx, ty = (opaque(mi.Float, v) for v in cam.tan_half)
     return mi.Point2f((x / -z / tx + 1) * 0.5 * cam.width, (1 - y / -z / ty) * 0.5 * cam.height)
 
 
@@ -82,12 +82,12 @@ class Rasterizer:
         intersected (Moller-Trumbore) with the triangle the visibility pass found there.
         `idx` are pixel indices y*W + x; obj_ids/prims hold their ids."""
         W, H = cam.width, cam.height
-        sx = mi.Float(idx % W) + 0.5 + float(jitter[0])
-        sy = mi.Float(idx // W) + 0.5 + float(jitter[1])
-        tx, ty = cam.tan_half
+        sx = mi.Float(idx % W) + 0.5 + opaque(mi.Float, jitter[0])
+        sy = mi.Float(idx // W) + 0.5 + opaque(mi.Float, jitter[1])
+        tx, ty = (opaque(mi.Float, v) for v in cam.tan_half)
         ray_d = (_vec(cam.to_world, 0) * ((2 * sx / W - 1) * tx) + _vec(cam.to_world, 1) * ((1 - 2 * sy / H) * ty)
                  - _vec(cam.to_world, 2))
-        ray_o = mi.Point3f(*(float(c) for c in cam.position))
+        ray_o = opaque(mi.Point3f, *cam.position)
         obj = mi.UInt32(np.ascontiguousarray(obj_ids, np.uint32))
         valid = obj > 0
         face_off = mi.UInt32(geo.face_offset.astype(np.uint32))

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from backend import dr, mi
+from backend import dr, mi, opaque
 from scenes.description import DirectionalLight
 
 from .frame import FrameGeometry
@@ -113,23 +113,23 @@ def shade(geo: FrameGeometry, surf: Surface, eye: np.ndarray, active=True,
     if desc.transport == "unlit":
         colour = albedo
     else:
-        view = surf.p - mi.Point3f(*(float(c) for c in eye))
+        view = surf.p - opaque(mi.Point3f, *eye)
         flip = dr.dot(surf.n_geo, view) > 0
         n_geo = dr.select(flip, -surf.n_geo, surf.n_geo)
         n_sh = dr.select(flip, -surf.n_sh, surf.n_sh)
-        irradiance = mi.Color3f(*desc.ambient)
+        irradiance = opaque(mi.Color3f, *desc.ambient)
         shadows = desc.transport in ("direct_shadows", "path")
         origin = surf.p + n_geo * (1e-4 * (1.0 + dr.max(dr.abs(surf.p))))
         for light in desc.lights:
             if isinstance(light, DirectionalLight):
                 d = -np.asarray(light.direction, float)
-                l_dir = mi.Vector3f(*(float(c) for c in d / np.linalg.norm(d)))
-                dist, e = mi.Float(dr.inf), mi.Color3f(*light.intensity)
+                l_dir = opaque(mi.Vector3f, *(d / np.linalg.norm(d)))
+                dist, e = mi.Float(dr.inf), opaque(mi.Color3f, *light.intensity)
             else:
-                to_light = mi.Point3f(*light.position) - surf.p
+                to_light = opaque(mi.Point3f, *light.position) - surf.p
                 dist = dr.norm(to_light)
                 l_dir = to_light / dist
-                e = mi.Color3f(*light.intensity) / dr.square(dist)
+                e = opaque(mi.Color3f, *light.intensity) / dr.square(dist)
             cos = dr.maximum(dr.dot(n_sh, l_dir), 0.0)
             lit = hit & (cos > 0)
             if shadows:
@@ -141,4 +141,4 @@ def shade(geo: FrameGeometry, surf: Surface, eye: np.ndarray, active=True,
         colour += dr.gather(mi.Color3f, geo.obj_emission, surf.obj, hit)
     if light_mask is not None:
         light_mask.append(dr.select(hit, mask, 0))
-    return dr.select(hit, colour, mi.Color3f(*desc.background))
+    return dr.select(hit, colour, opaque(mi.Color3f, *desc.background))
