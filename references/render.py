@@ -4,7 +4,8 @@ A pixel's value is the plain mean of all its samples; its standard error (SE) co
 spread of independent estimates, in linear HDR and, through the Jacobian of the display
 transform at the mean (spec section 8, channels' covariance kept), in display units: the
 transform of the current mean, re-derived after every round, so that the bound holds in the
-display domain of the converged image, the one the study judges in. The bound is on the worst channel, 0.5 LSB of 8 bits by default.
+display domain of the converged image, the one the study judges in. The bound is on the worst
+channel, 0.5 LSB of 8 bits by default.
 
 1. Pilot: `min_passes` independent sets of `spp_per_pass` samples at every pixel (the cache uses
    4 x 2), each an Owen-scrambled Sobol' net over the pixel with a scramble of its own (a
@@ -254,6 +255,12 @@ def _unseen_floor(disp: DisplayTransform, mean: np.ndarray, lo: np.ndarray, hi: 
     return d, np.maximum(np.abs(up), np.abs(down))
 
 
+def _samples_needed(spp: np.ndarray, se_spread: np.ndarray, se_floor: np.ndarray, bound: float) -> np.ndarray:
+    """Samples a pixel needs for the bound: SE ~ 1/sqrt(M) for the spread of its samples (a
+    ceiling: stratification beats it), ~ 1/M for the unseen-feature floor."""
+    return np.maximum(spp * (se_spread / bound) ** 2, spp * (se_floor / bound))
+
+
 def _noise_db(dse: np.ndarray) -> float:
     mse = float(np.mean(dse ** 2))
     return float("inf") if mse == 0 else 10 * math.log10(1.0 / mse)
@@ -337,9 +344,8 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
         worst = np.maximum(worst_s, worst_f)
         over = (worst > bound) & (est.m < cap)
         spp = est.spp
-        # samples the bound asks for: SE ~ 1/sqrt(M) for the spread of the samples, ~ 1/M for
-        # the unseen-feature floor
-        need = np.maximum(spp * (worst_s / bound) ** 2, spp * (worst_f / bound)) * _MARGIN
+        # samples the bound asks for (_samples_needed)
+        need = _samples_needed(spp, worst_s, worst_f, bound) * _MARGIN
         want = (np.ceil(need) - spp) / r      # per replicate
         if rounds == 0:
             # A pilot spread of min_passes estimates is a rough noise estimate: every pixel
@@ -388,7 +394,7 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
     spp_map = est.spp.reshape(height, width)
     b0 = se_bound_lsb * LSB
     missed = dse.max(axis=-1) > b0 * (1 + 1e-5)
-    needed = np.maximum(est.spp * (dse_s.max(axis=-1) / b0) ** 2, est.spp * (floor_d.max(axis=-1) / b0))[missed]
+    needed = _samples_needed(est.spp, dse_s.max(axis=-1), floor_d.max(axis=-1), b0)[missed]
     lin_se = np.maximum(est.linear_se(), floor_l)
     return Reference(est.mean.reshape(height, width, 3).astype(np.float32),
                      lin_se.reshape(height, width, 3).astype(np.float32),

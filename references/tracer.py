@@ -15,13 +15,6 @@ _CHUNK_RAYS = 1 << 22    # rays per Dr.Jit launch
 
 
 _NET_BITS = 16           # a set holds at most 2^16 samples (render_reference's cap per replicate)
-# Sobol's second dimension: bit b of the index flips row b of the upper-triangular Pascal matrix
-# mod 2 (x ^= v, v ^= v >> 1 from v = 2^31), as Mitsuba's sobol_2
-_SOBOL_ROWS = []
-_v = 1 << 31
-for _ in range(_NET_BITS):
-    _SOBOL_ROWS.append(_v)
-    _v ^= _v >> 1
 
 
 def _owen(x, seed):
@@ -42,9 +35,9 @@ def net_points(j, seed0, seed1):
     are scrambled by seed0 and seed1: the first 2^m points of one scramble are a (0,m,2)-net,
     one point in each of the 2^m cells of every shape 2^-k x 2^-(m-k), each uniform over [0,1)^2."""
     x0 = dr.brev(j)                                   # van der Corput
-    x1 = dr.zeros(mi.UInt32, dr.width(j))
-    for b, row in enumerate(_SOBOL_ROWS):
-        x1 = dr.select(((j >> b) & 1) != 0, x1 ^ row, x1)
+    # Mitsuba's unscrambled Sobol' dimension 2: below 2^16 points it has 16 significant bits,
+    # exact in float32, so its 32-bit fraction is recovered exactly
+    x1 = mi.UInt32(mi.sobol_2(j, 0) * mi.Float(2.0 ** 32))
     scale = mi.Float(2.0 ** -24)                      # the leading 24 bits: float32 in [0, 1)
     return mi.Float(_owen(x0, seed0) >> 8) * scale, mi.Float(_owen(x1, seed1) >> 8) * scale
 
