@@ -8,9 +8,8 @@ display domain of the converged image, the one the study judges in. The bound is
 channel, 0.5 LSB of 8 bits by default.
 
 1. Pilot: `min_passes` independent sets of `spp_per_pass` samples at every pixel (the cache uses
-   4 x 2), each an Owen-scrambled Sobol' net over the pixel with a scramble of its own (a
-   power of two of samples, stratified in every cell shape of that size: references/tracer.py),
-   traced through the Mitsuba sensor and BVH with
+   4 x 2), each an Owen-scrambled Sobol' net over the pixel with a scramble of its own
+   (references/tracer.py), traced through the Mitsuba sensor and BVH with
    `shading.trace_visible` and `shading.shade` (the raster's function); transport 'path' calls
    Mitsuba's path integrator per ray the same way (its other dimensions from an independent
    sampler). The spread of the sets is the pilot's noise estimate; each pixel also keeps its
@@ -100,9 +99,7 @@ class Reference:
     rounds: int = 0                            # adaptive rounds after the pilot
     display_floor: np.ndarray | None = None    # (H, W, 3) the unseen-feature part of display_stderr
     half_delta: np.ndarray | None = None       # (H, W, 3) linear: half A = image + delta, B = image - delta
-    # what the pixels still over the bound at the cap would take: the largest count predicted
-    # from their SE as at every round (SE ~ 1/sqrt(M), ~ 1/M for the floor); 0 when none is over
-    spp_needed: int = 0
+    spp_needed: int = 0     # what the worst pixel over the bound at the cap would take (0: none)
     _history: list = field(default_factory=list, repr=False)
 
     @property
@@ -256,8 +253,7 @@ def _unseen_floor(disp: DisplayTransform, mean: np.ndarray, lo: np.ndarray, hi: 
 
 
 def _samples_needed(spp: np.ndarray, se_spread: np.ndarray, se_floor: np.ndarray, bound: float) -> np.ndarray:
-    """Samples a pixel needs for the bound: SE ~ 1/sqrt(M) for the spread of its samples (a
-    ceiling: stratification beats it), ~ 1/M for the unseen-feature floor."""
+    """Samples for the bound: SE ~ 1/sqrt(M) for the spread (a ceiling), ~ 1/M for the floor."""
     return np.maximum(spp * (se_spread / bound) ** 2, spp * (se_floor / bound))
 
 
@@ -314,9 +310,8 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
         pilot[g], lo[g], hi[g] = sums / spp_per_pass, glo, ghi
     est = _Estimates(pilot, spp_per_pass, r)
     del pilot
-    # the transform of the current mean, re-derived after every round: a pass of a few samples
-    # can put it far off (thin bright lines on black: 4.4x the exposure, white 22x), and the
-    # bound must hold in the domain the study judges in, the converged image's
+    # the current mean's transform, re-derived every round: one pass of a few samples can be far
+    # off (thin bright lines on black: 4.4x the exposure), and the bound must hold in the study's
     disp = DisplayTransform.from_reference(est.mean.reshape(height, width, 3))
     dse_s = np.zeros((npix, 3))           # from the spread of the samples
     dse_s[est.varies] = _display_se(disp, est.mean[est.varies], est.cov[est.varies])
@@ -344,7 +339,6 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
         worst = np.maximum(worst_s, worst_f)
         over = (worst > bound) & (est.m < cap)
         spp = est.spp
-        # samples the bound asks for (_samples_needed)
         need = _samples_needed(spp, worst_s, worst_f, bound) * _MARGIN
         want = (np.ceil(need) - spp) / r      # per replicate
         if rounds == 0:
