@@ -4,6 +4,9 @@ import numpy as np
 import pytest
 
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+# The suite already runs a process per core (pytest-xdist): its studies run in-process unless a
+# test names an executor; tests/test_study_graph.py tests the default (auto) and the clusters.
+os.environ.setdefault("TAA_STUDY_WORKERS", "1")
 
 import backend  # noqa: E402,F401  (selects libLLVM before drjit is imported anywhere)
 from scenes.description import (Camera, DirectionalLight, Material, MeshSpec, Motion,  # noqa: E402

@@ -123,3 +123,59 @@ def test_a_deterministic_failure_stops_every_executor_with_the_same_message(tmp_
         assert not (tmp_path / f"o{i}" / "manifest.json").exists()     # no half-written output
     assert msgs[0] == msgs[1] and len(msgs[0]) == 1
     assert "technique 'Bad' produced NaN/Inf" in msgs[0][0]
+
+
+def test_the_default_executor_shares_the_cores_and_runs_a_small_plan_in_process(monkeypatch):
+    from study.commands.common import _executor
+    from study.engine import execute as E
+    monkeypatch.delenv("TAA_STUDY_WORKERS", raising=False)
+    shape = lambda ex: (ex.kind, ex.workers, ex.worker_threads())     # noqa: E731
+    for n, want in ((2, ("auto", 2, 1)), (16, ("auto", 4, 4)), (6, ("auto", 4, 1))):
+        monkeypatch.setattr(E, "cores", lambda n=n: n)
+        assert shape(_executor(None, None, None)) == want, n
+    assert shape(_executor(3, None, None)) == ("local", 3, 2)             # 6 cores shared by 3 workers
+    assert _executor(3, 5, None).worker_threads() == 5                     # the user's --threads
+    assert _executor(1, None, None).kind == "in-process"                   # --workers 1: debugging
+    monkeypatch.setattr(E, "cores", lambda: 1)
+    assert _executor(None, None, None).kind == "in-process"
+    monkeypatch.setenv("TAA_STUDY_WORKERS", "1")
+    monkeypatch.setattr(E, "cores", lambda: 8)
+    assert _executor(None, None, None).kind == "in-process"
+    monkeypatch.setenv("TAA_STUDY_WORKERS", "two")
+    with pytest.raises(SystemExit) as e:
+        _executor(None, None, None)
+    assert e.value.code == 2
+
+    # a plan under AUTO_MIN_TASKS tasks starts no cluster
+    from types import SimpleNamespace as NS
+    tasks = {f"k{i}": NS(fn=pow, args=(i, 2), deps=(), kind="x") for i in range(E.AUTO_MIN_TASKS - 1)}
+    with E.Session(E.Executor("auto", workers=2)) as s:
+        got = s.execute(NS(tasks=tasks, cached={"c": 7}), progress=False)
+        assert s._client is None
+    assert got == {"c": 7, **{f"k{i}": i * i for i in range(E.AUTO_MIN_TASKS - 1)}}
+
+
+def test_an_auto_plan_runs_on_a_cluster_whose_workers_have_the_cores_shared_out(tmp_path):
+    """Eight tasks on two workers: the cluster is started once for two plans, and each worker's
+    Dr.Jit pool has the threads the executor gave it (a worker plugin, set before any task)."""
+    code = """
+import json, sys
+from types import SimpleNamespace as NS
+import drjit as dr
+from study.engine import execute as E
+E.cores = lambda: 2
+# a builtin as the task (a nanobind function has no deterministic Dask token)
+plan = lambda tag: NS(tasks={f"{tag}{i}": NS(fn=eval, args=("__import__('drjit').thread_count()",), deps=(), kind="x") for i in range(E.AUTO_MIN_TASKS)}, cached={})
+logged = []
+with E.Session(E.Executor("auto", workers=2), log=logged.append) as s:
+    a = s.execute(plan("a"), progress=False)
+    first = s._client
+    b = s.execute(plan("b"), progress=False)
+    print(json.dumps({"threads": sorted(set(a.values()) | set(b.values())), "same": s._client is first,
+                      "n": len(a) + len(b), "dashboards": sum("dashboard" in m for m in logged)}))
+"""
+    r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-3000:]
+    import json
+    got = json.loads(r.stdout.strip().splitlines()[-1])
+    assert got == {"threads": [1], "same": True, "n": 2 * 8, "dashboards": 1}, got

@@ -78,12 +78,22 @@ def _scene_list(ctx, param, value):
 
 
 def _executor(workers, threads, scheduler):
+    """--workers N: a LocalCluster of N processes (1: in-process); neither it nor --scheduler: the
+    default, TAA_STUDY_WORKERS when set, else auto (study.engine.execute)."""
     from study.engine.execute import Executor
     if scheduler and workers:
         _fail("give either --workers N (a local cluster) or --scheduler ADDRESS, not both")
     if scheduler:
         return Executor("scheduler", address=scheduler, threads=threads)
-    if workers:
+    if workers is None and os.environ.get("TAA_STUDY_WORKERS", "").strip():
+        raw = os.environ["TAA_STUDY_WORKERS"].strip()
+        if not raw.isdigit() or int(raw) < 1:
+            _fail(f"TAA_STUDY_WORKERS={raw!r}: give a whole number of worker processes, 1 or more")
+        workers = int(raw)
+    if workers is None:
+        ex = Executor.auto()
+        return Executor(ex.kind, workers=ex.workers, threads=threads)
+    if workers > 1:
         return Executor("local", workers=workers, threads=threads)
     return Executor("in-process", threads=threads)
 
@@ -105,9 +115,11 @@ def _strict_json(obj) -> str:
 
 EXECUTION_OPTIONS = [
     click.option("--workers", type=click.IntRange(min=1), default=None,
-                 help="Run the tasks on a local Dask cluster of N worker processes."),
+                 help="Run the tasks on a local Dask cluster of N worker processes (1: in this process). "
+                      "Default: one per core, at most 4, for plans of 8 tasks or more (TAA_STUDY_WORKERS "
+                      "sets it)."),
     click.option("--threads", type=click.IntRange(min=1), default=None,
-                 help="Dr.Jit threads per process (default: all cores)."),
+                 help="Dr.Jit threads per process (default: the cores shared out among the workers)."),
     click.option("--scheduler", default=None, metavar="tcp://HOST:PORT",
                  help="Run the tasks on an existing Dask scheduler (the cache must be on a filesystem every "
                       "worker sees)."),

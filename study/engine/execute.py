@@ -1,9 +1,15 @@
 """Execution: where a plan's tasks run. Dask runs them; this module only chooses the scheduler.
 
-  in-process   (default) Dask's synchronous scheduler in this process: no extra processes.
-  local        a distributed.LocalCluster of N worker processes, one Dask thread each (Dr.Jit's
-               JIT state and the EGL context are per process; a worker's parallelism is Dr.Jit's
-               own thread pool, `threads`).
+  auto         (default) a distributed.LocalCluster of one worker process per core (at most 4),
+               the cores shared out as Dr.Jit threads, for a plan of AUTO_MIN_TASKS tasks or more;
+               a smaller plan (an A/B of one edited technique, a re-judged table) in-process, as
+               starting the workers would cost more than it saves.
+  in-process   Dask's synchronous scheduler in this process (`--workers 1`: one process, for
+               debugging).
+  local        a LocalCluster of N worker processes, one Dask thread each (Dr.Jit's JIT state and
+               the EGL context are per process; a worker's parallelism is Dr.Jit's own thread pool,
+               `threads`, by default the cores shared out: two workers of two threads on two cores
+               took 565 s where two of one took 352 s).
   scheduler    an existing Dask scheduler (tcp://HOST:PORT); every worker must see the cache
                folder at the same path (a shared filesystem) and have this project installed.
 Tasks return small dicts; their images go through the cache. A task lost with its worker is run
@@ -11,6 +17,7 @@ again elsewhere by the scheduler; a task that raises stops the study with its me
 """
 from __future__ import annotations
 
+import os
 import sys
 from collections import Counter
 from dataclasses import dataclass
@@ -18,16 +25,42 @@ from dataclasses import dataclass
 from tqdm import tqdm
 
 
+AUTO_MIN_TASKS = 8
+AUTO_MAX_WORKERS = 4
+
+
+def cores() -> int:
+    """The cores this process may use (its affinity, not the machine's count)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:
+        return os.cpu_count() or 1
+
+
 @dataclass(frozen=True)
 class Executor:
-    kind: str = "in-process"       # in-process | local | scheduler
+    kind: str = "in-process"       # auto | in-process | local | scheduler
     workers: int = 1
-    threads: int | None = None     # Dr.Jit threads per worker process
+    threads: int | None = None     # Dr.Jit threads per worker process (None: the cores shared out)
     address: str | None = None
 
+    @classmethod
+    def auto(cls) -> "Executor":
+        n = cores()
+        if n < 2:
+            return cls("in-process")
+        return cls("auto", workers=min(n, AUTO_MAX_WORKERS))
+
+    def worker_threads(self) -> int | None:
+        """Dr.Jit threads of each cluster worker: the user's, else this machine's cores shared out."""
+        if self.threads or self.kind == "scheduler":
+            return self.threads
+        return max(1, cores() // max(1, self.workers))
+
     def describe(self) -> str:
-        if self.kind == "local":
-            return f"LocalCluster, {self.workers} worker processes" + (f" x {self.threads} threads" if self.threads else "")
+        if self.kind in ("local", "auto"):
+            d = f"LocalCluster, {self.workers} worker processes x {self.worker_threads()} threads"
+            return d if self.kind == "local" else f"auto: {d} (plans under {AUTO_MIN_TASKS} tasks in-process)"
         if self.kind == "scheduler":
             return f"Dask scheduler {self.address}"
         return "in-process"
@@ -71,51 +104,85 @@ class _Bar:
         self.bar.close()
 
 
-def execute(plan, executor: Executor = Executor(), progress: bool = True, log=print) -> dict:
-    """Run every task of the plan; key -> result (the plan's cached results included)."""
-    results = dict(plan.cached)
-    if not plan.tasks:
-        return results
-    dsk = graph(plan)
-    keys = list(dsk)
-    bar = _Bar(plan, progress)
-    try:
-        if executor.kind == "in-process":
-            import dask
-            from dask.callbacks import Callback
+class Session:
+    """Where a study's plans run, held open across its precision rounds: a cluster started once,
+    not once per round (its workers keep their compiled kernels and their EGL contexts)."""
 
-            class _Progress(Callback):
-                def _posttask(self, key, result, dsk_, state, worker_id):
-                    bar.finished(plan.tasks[key].kind)
+    def __init__(self, executor: Executor = Executor(), log=print):
+        self.executor, self.log = executor, log
+        self._client = self._cluster = None
 
-            with _Progress():
-                out = dask.get(dsk, keys)
-            results.update(zip(keys, out))
+    def _connect(self, n_tasks: int):
+        ex = self.executor
+        if self._client is not None or ex.kind == "in-process" or (ex.kind == "auto" and n_tasks < AUTO_MIN_TASKS):
+            return self._client
+        import dask
+        from distributed import Client, LocalCluster
+        # the workers' statistical profiler samples every thread's stack every 10 ms: CPU taken from the tasks
+        dask.config.set({"distributed.worker.profile.enabled": False})
+        if self.executor.kind in ("local", "auto"):
+            import logging
+            # A task's own error is reported once, by the study, not again by the worker's log.
+            self._cluster = LocalCluster(n_workers=self.executor.workers, threads_per_worker=1, processes=True,
+                                         dashboard_address=":0", silence_logs=logging.CRITICAL)
+            self._client = Client(self._cluster)
+            from study.engine.worker_setup import DrJitThreads
+            self._client.register_plugin(DrJitThreads(self.executor.worker_threads()), name="taa-drjit-threads")
         else:
-            from distributed import Client, LocalCluster, as_completed
-            if executor.kind == "local":
-                import logging
-                # A task's own error is reported once, by the study, not again by the worker's log.
-                cluster = LocalCluster(n_workers=executor.workers, threads_per_worker=1, processes=True,
-                                       dashboard_address=":0", silence_logs=logging.CRITICAL)
-                client = Client(cluster)
+            self._client = Client(self.executor.address)
+        if self._client.dashboard_link:
+            self.log(f"Dask dashboard: {self._client.dashboard_link}")
+        return self._client
+
+    def close(self):
+        if self._client is not None:
+            self._client.close()
+        if self._cluster is not None:
+            self._cluster.close()
+        self._client = self._cluster = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def execute(self, plan, progress: bool = True) -> dict:
+        """Run every task of the plan; key -> result (the plan's cached results included)."""
+        results = dict(plan.cached)
+        if not plan.tasks:
+            return results
+        dsk = graph(plan)
+        keys = list(dsk)
+        bar = _Bar(plan, progress)
+        try:
+            client = self._connect(len(plan.tasks))
+            if client is None:
+                import dask
+                from dask.callbacks import Callback
+
+                class _Progress(Callback):
+                    def _posttask(self, key, result, dsk_, state, worker_id):
+                        bar.finished(plan.tasks[key].kind)
+
+                with _Progress():
+                    out = dask.get(dsk, keys)
+                results.update(zip(keys, out))
             else:
-                cluster, client = None, Client(executor.address)
-            try:
-                if client.dashboard_link:
-                    log(f"Dask dashboard: {client.dashboard_link}")
+                from distributed import as_completed
                 futures = client.get(dsk, keys, sync=False)
-                by_key = dict(zip(keys, futures))
                 for fut in as_completed(futures):
                     results[fut.key] = fut.result()     # re-raises a task's own exception
                     bar.finished(plan.tasks[fut.key].kind)
-                missing = [k for k in by_key if k not in results]
+                missing = [k for k in keys if k not in results]
                 if missing:
                     raise RuntimeError(f"{len(missing)} tasks returned no result")
-            finally:
-                client.close()
-                if cluster is not None:
-                    cluster.close()
-    finally:
-        bar.close()
-    return results
+        finally:
+            bar.close()
+        return results
+
+
+def execute(plan, executor: Executor = Executor(), progress: bool = True, log=print) -> dict:
+    """One plan on its own session (a cluster started and closed for it)."""
+    with Session(executor, log) as session:
+        return session.execute(plan, progress)

@@ -19,7 +19,7 @@ from scenes import ResolvedScene
 
 from study.config.profile import Profile, get_profile
 from study.config.techniques import TechniqueConfig
-from study.engine.execute import Executor, execute
+from study.engine.execute import Executor, Session
 from study.engine.plan import Planner
 from study.config.precision import Precision
 from study.engine.precision import decide, figures_of
@@ -113,46 +113,47 @@ class Study:
         figures = self.precision.rule == "figures"
         # the agreement (64-256 raster frames a scene) only against the static test's final references
         agree, settled = agreement and not figures, False
-        while True:
-            plan, scenes, statics, ghosts, sweeps = self.plan(specs, configs, agree, sweep, ghosting)
-            tests = {(t.scene, t.protocol.name) for t in statics + ghosts + sweeps}
-            for k in sorted(tests):
-                b, seen = self.bound_of(*k), tried.setdefault(k, [])
-                if not seen or seen[-1] != b:
-                    seen.append(b)
-            counts = plan.counts()
-            if plan.tasks:
-                self.log(f"study: {len(plan.tasks)} tasks to compute ({', '.join(f'{k} {n}' for k, n in sorted(counts.items()))})"
-                         f", {len(plan.cached)} complete; executor: {self.executor.describe()}")
-            results = execute(plan, self.executor, self.progress, self.log)
-            for key in [k for k, v in results.items() if "records" in v]:   # a metrics task: its records by key
-                for mkey, rec in results.pop(key)["records"].items():
-                    results[mkey] = {"kind": "metrics", "key": mkey, **rec}
-            rounds.append((counts, results))
-            if not figures or settled:
-                break
-            now: dict = {}
-            for t in statics + ghosts + sweeps:        # a sweep shares its protocol's references
-                now.setdefault((t.scene, t.protocol.name), {}).update(
-                    {(t.protocol.name, *k): v for k, v in figures_of(self._result(t, results, {})).items()})
-            finer, judged = decide(now, before, self.levels, self.precision, over, self.drifts)
-            for k in sorted(judged):
-                name, b = f"{k[0]} ({k[1]})", self.bound_of(*k)
-                nxt = f"references again at {self.precision.bound(finer[k]):g} LSB" if k in finer else ""
-                if not over[k]:
-                    if k in finer:
-                        self.log(f"precision: {name}: every figure within its tolerance at the {b:g}-LSB probe; {nxt}, "
-                                 "where the figures ask for it and the drift can be measured")
-                    continue
-                label, tech, f, m, u, tol = over[k][0]
-                self.log(f"precision: {name}: {len(over[k])} figures over their tolerance at {b:g} LSB, the worst "
-                         f"{m} of {tech} ({label}, frame {f}) +-{u:.3g} > {tol:.3g}; "
-                         + (nxt if k in finer else "the finest bound: reported"))
-            if not finer:
-                if not agreement:
+        with Session(self.executor, self.log) as session:     # one cluster for every round
+            while True:
+                plan, scenes, statics, ghosts, sweeps = self.plan(specs, configs, agree, sweep, ghosting)
+                tests = {(t.scene, t.protocol.name) for t in statics + ghosts + sweeps}
+                for k in sorted(tests):
+                    b, seen = self.bound_of(*k), tried.setdefault(k, [])
+                    if not seen or seen[-1] != b:
+                        seen.append(b)
+                counts = plan.counts()
+                if plan.tasks:
+                    self.log(f"study: {len(plan.tasks)} tasks to compute ({', '.join(f'{k} {n}' for k, n in sorted(counts.items()))})"
+                             f", {len(plan.cached)} complete; executor: {self.executor.describe()}")
+                results = session.execute(plan, self.progress)
+                for key in [k for k, v in results.items() if "records" in v]:   # a metrics task: its records by key
+                    for mkey, rec in results.pop(key)["records"].items():
+                        results[mkey] = {"kind": "metrics", "key": mkey, **rec}
+                rounds.append((counts, results))
+                if not figures or settled:
                     break
-                agree = settled = True       # one more round: the agreements alone (the rest is cached)
-            self.levels.update(finer)
+                now: dict = {}
+                for t in statics + ghosts + sweeps:        # a sweep shares its protocol's references
+                    now.setdefault((t.scene, t.protocol.name), {}).update(
+                        {(t.protocol.name, *k): v for k, v in figures_of(self._result(t, results, {})).items()})
+                finer, judged = decide(now, before, self.levels, self.precision, over, self.drifts)
+                for k in sorted(judged):
+                    name, b = f"{k[0]} ({k[1]})", self.bound_of(*k)
+                    nxt = f"references again at {self.precision.bound(finer[k]):g} LSB" if k in finer else ""
+                    if not over[k]:
+                        if k in finer:
+                            self.log(f"precision: {name}: every figure within its tolerance at the {b:g}-LSB probe; {nxt}, "
+                                     "where the figures ask for it and the drift can be measured")
+                        continue
+                    label, tech, f, m, u, tol = over[k][0]
+                    self.log(f"precision: {name}: {len(over[k])} figures over their tolerance at {b:g} LSB, the worst "
+                             f"{m} of {tech} ({label}, frame {f}) +-{u:.3g} > {tol:.3g}; "
+                             + (nxt if k in finer else "the finest bound: reported"))
+                if not finer:
+                    if not agreement:
+                        break
+                    agree = settled = True       # one more round: the agreements alone (the rest is cached)
+                self.levels.update(finer)
         results: dict = {}
         for _, r in rounds:       # a task's first round is the one that computed it; later ones find it cached
             for k, v in r.items():
