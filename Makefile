@@ -20,7 +20,7 @@ study: $(STAMP)
 TEST_WORKERS ?= $(shell n=$$(nproc); [ $$n -gt 4 ] && n=4; echo $$n)
 test: $(STAMP)
 	bash scripts/setup_latex.sh
-	TAA_REQUIRE_LATEX=1 $(PY) -m pytest -q --durations=20 -n $(TEST_WORKERS) --dist loadfile
+	TAA_REQUIRE_LATEX=1 $(PY) -m pytest -q --durations=20 -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 # A LaTeX toolchain when missing (scripts/setup_latex.sh, as `make test`), then
 # `taa-study paper`: the study (make-style, cached), its tables and figures into paper/generated/,

@@ -31,6 +31,23 @@ def two_colour_scene(rotate_deg=17.0, transport="unlit", **cam):
         lights=(DirectionalLight(direction=(0, 0, -1)),) if transport != "unlit" else ()))
 
 
+def pytest_configure(config):
+    config.addinivalue_line("markers", "long(seconds): a test of about that many seconds on a new 2-core "
+                                       "machine; its file is started first (scheduling only)")
+
+
+def pytest_collection_modifyitems(session, config, items):
+    """The files of the longest tests first: pytest-xdist (--dist loadfile --no-loadscope-reorder)
+    hands files out in this order, so no process is left alone with a long file at the end."""
+    cost: dict = {}
+    for item in items:
+        m = item.get_closest_marker("long")
+        if m is not None:
+            cost[item.path] = cost.get(item.path, 0) + float(m.kwargs.get("seconds", m.args[0] if m.args else 1))
+    order = {path: i for i, path in enumerate(dict.fromkeys(item.path for item in items))}
+    items.sort(key=lambda it: (-cost.get(it.path, 0), order[it.path]))
+
+
 @pytest.fixture
 def rng():
     return np.random.default_rng(1234)

@@ -11,6 +11,7 @@ from study.engine.agreement import TARGETS, check_agreement
 from study.commands.cli import main
 
 
+@pytest.mark.long(seconds=10)     # flowers about 25 s, the others 2
 @pytest.mark.parametrize("name,frame", [("sphere_ghosting", 7), ("text_wall", 0), ("flowers", 0)])
 def test_agreement_targets_on_small_builtin_scenes(name, frame, tmp_path):
     scene = get_scene(name)

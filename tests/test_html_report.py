@@ -158,6 +158,7 @@ def _csv(path: Path) -> list[list[str]]:
     return list(csv.reader(path.read_text().splitlines()))
 
 
+@pytest.mark.long(seconds=17)
 def test_collect_reads_a_finished_study(tiny_study):
     out, _ = tiny_study
     data = html_report.collect(out)

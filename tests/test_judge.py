@@ -86,6 +86,7 @@ def study_scene(spec):
     return load_scene(spec)
 
 
+@pytest.mark.long(seconds=25)
 def test_runs_keep_only_the_frames_the_report_reads_and_are_remade_when_judged_again(tmp_path, monkeypatch):
     from study.config.profile import get_profile
     from study.config.techniques import TechniqueConfig

@@ -38,6 +38,7 @@ def own(tmp_path, monkeypatch):
     return tmp_path
 
 
+@pytest.mark.long(seconds=18)
 def test_readme_study_file_and_own_technique_run(own):
     _invoke(["run", own / "my_study.toml", "--precision", "per_pixel"])
     out = own / "out" / "my_study"

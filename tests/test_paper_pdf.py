@@ -110,6 +110,7 @@ def _latex_missing():
     return None
 
 
+@pytest.mark.long(seconds=12)
 def test_paper_builds_from_a_tiny_study_with_every_table_and_figure(tmp_path):
     why = _latex_missing()
     if why:

@@ -28,6 +28,7 @@ def _run(env, *techs, extra=()):
     return json.loads((env / "out" / "manifest.json").read_text())["summary"], r.output
 
 
+@pytest.mark.long(seconds=22)
 def test_second_run_recomputes_nothing_and_one_changed_parameter_recomputes_one_technique(env):
     a = "Uncharted=taa_baseline"
     b = "Improved=taa_improved"
@@ -67,6 +68,7 @@ def test_bad_technique_is_refused(env):
     assert r.exit_code == 2 and "k_min" in r.output
 
 
+@pytest.mark.long(seconds=20)
 def test_ab_reports_paired_differences_and_gates(env):
     base = ["ab", "--scenes", str(env / "tiny.toml"), "--json"]
     r = CliRunner().invoke(main, base + ["taa_baseline:sharpen=normalised", "taa_baseline:sharpen=xu",

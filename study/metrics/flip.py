@@ -252,16 +252,23 @@ def _colour_difference(fr, ft, c: _Consts, F64):
     return dr.select(cd < float(c.pccmax), low, high)
 
 
+_ONE116, _SIX116 = float(f32(1.0) / f32(116.0)), float(f32(16.0) / f32(116.0))
+
+
+def _flip_quantities(v):
+    return [v[0], v[1], v[2], v[0] * _ONE116 + _SIX116]
+
+
+# Frozen (dr.freeze), as SSIM's passes: the same kernels for every image of a layout, traced once
+# and replayed; a new layout or constants trace again.
+@dr.freeze
 def _filtered(lay: jf.Layout, rgb, c: _Consts):
     """One image's half of LDR-FLIP: its filtered (Y, Cx, Cz) and its edge and point feature
     magnitudes, from linear RGB in [0, 1] (three flat arrays). The reference's half does not
     depend on the test image, so a caller judging many images against one reference keeps it."""
     planes = _ycxcz(rgb)
     dr.eval(planes)
-    one116, six116 = float(f32(1.0) / f32(116.0)), float(f32(16.0) / f32(116.0))
-
-    def quantities(v):
-        return [v[0], v[1], v[2], v[0] * one116 + six116]
+    quantities = _flip_quantities
 
     gY, gCx, gZ1, gZ2 = c.spatial
     g, dg, ddg = c.feature
@@ -282,8 +289,13 @@ def _filtered(lay: jf.Layout, rgb, c: _Consts):
 def ldr_flip_linear(lay: jf.Layout, ref_rgb, test_rgb, c: _Consts, ref_half=None):
     """FLIP error map (flat float32 array in `lay`) of two linear RGB images in [0, 1] (lists of
     three flat arrays). `ref_half`: the reference's _filtered, if already computed."""
-    F64 = _pow_type()
     fr, feat_r = ref_half if ref_half is not None else _filtered(lay, ref_rgb, c)
+    return _against(lay, fr, feat_r, test_rgb, c)
+
+
+@dr.freeze
+def _against(lay: jf.Layout, fr, feat_r, test_rgb, c: _Consts):
+    F64 = _pow_type()
     ft, feat_t = _filtered(lay, test_rgb, c)
     colour = _colour_difference(fr, ft, c, F64)
     ed = dr.abs(feat_r[0] - feat_t[0])

@@ -65,21 +65,35 @@ def _ssim_formula(ux, uy, uxx, uyy, uxy, c1, c2):
     return ((2.0 * ux * uy + c1) * (2.0 * vxy + c2)) / ((ux * ux + uy * uy + c1) * (vx + vy + c2))
 
 
-def _volume_frame(lay: jf.Layout, planes: list, sigma: float, c1: float, c2: float):
-    """(rows, cols, per-pixel channel sum of the volume SSIM) on the pixels within the filter radius
-    of a border, where 'replicate' and 'reflect' differ: a direct 2-D window per pixel, 'replicate'
-    (clamped) taps, float64."""
-    J = jf.jit()
-    r = matlab_radius(sigma)
-    w = jf.gaussian_weights(sigma, r)
-    mix = channel_mixing(w)
+def _frame_pixels(lay: jf.Layout, r: int):
+    """(rows, cols) of the pixels within `r` of a border, rows first."""
     h, wd = lay.h, lay.w
     edge_rows = np.unique(np.r_[0:min(r, h), max(h - r, 0):h])
     mid_rows = np.arange(min(r, h), max(h - r, min(r, h)))
     edge_cols = np.unique(np.r_[0:min(r, wd), max(wd - r, 0):wd])
     ys = np.r_[np.repeat(edge_rows, wd), np.repeat(mid_rows, edge_cols.size)]
     xs = np.r_[np.tile(np.arange(wd), edge_rows.size), np.tile(edge_cols, mid_rows.size)]
+    return ys, xs
+
+
+def _volume_frame(lay: jf.Layout, planes: list, sigma: float, c1: float, c2: float):
+    """(rows, cols, per-pixel channel sum of the volume SSIM) on the pixels within the filter radius
+    of a border, where 'replicate' and 'reflect' differ: a direct 2-D window per pixel, 'replicate'
+    (clamped) taps, float64."""
+    J = jf.jit()
+    ys, xs = _frame_pixels(lay, matlab_radius(sigma))
     y, x = J.Int32(ys.astype(np.int32)), J.Int32(xs.astype(np.int32))
+    return ys, xs, _volume_frame_core(lay, planes, y, x, sigma, c1, c2).numpy()
+
+
+@dr.freeze
+def _volume_frame_core(lay: jf.Layout, planes: list, y, x, sigma: float, c1: float, c2: float):
+    # frozen: ~6000 traced operations a call, replayed (a new layout or sigma traces again)
+    J = jf.jit()
+    r = matlab_radius(sigma)
+    w = jf.gaussian_weights(sigma, r)
+    mix = channel_mixing(w)
+    h, wd = lay.h, lay.w
     acc = [None] * 15
     for dy in range(-r, r + 1):
         row = J.UInt32(dr.clip(y + dy, 0, h - 1)) * lay.wg
@@ -93,8 +107,7 @@ def _volume_frame(lay: jf.Layout, planes: list, sigma: float, c1: float, c2: flo
                     t = v * wt
                     k = 5 * c + q
                     acc[k] = t if acc[k] is None else acc[k] + t
-    tot = _mixed_ssim(acc, mix, c1, c2)
-    return ys, xs, tot.numpy()
+    return _mixed_ssim(acc, mix, c1, c2)
 
 
 def _mixed_ssim(v: list, mix: np.ndarray, c1: float, c2: float):
@@ -111,6 +124,40 @@ def _mixed_ssim(v: list, mix: np.ndarray, c1: float, c2: float):
         sc = _ssim_formula(*mixed, c1, c2)
         tot = sc if tot is None else tot + sc
     return tot
+
+
+def _ssim_quantities(v):
+    q = []
+    for c in range(3):
+        a, b = v[2 * c], v[2 * c + 1]
+        q += [a, b, a * a, b * b, a * b]
+    return q
+
+
+@dr.freeze
+def _ssim_core(lay: jf.Layout, planes: list, sigma: float, volume: bool, c1: float, c2: float):
+    """(channel sum of the per-channel SSIM map, the volume form's channel sum, or that map again
+    when volume is False) as flat arrays. Frozen: a 48x27 pair spent 85 % of its 85 ms in tracing
+    the same passes again; they are now replayed (a new layout or argument traces again)."""
+    rc, rv = skimage_radius(sigma), matlab_radius(sigma)
+    shared = volume and rv == rc
+    prec = "float64"
+    wc = tuple(float(t) for t in jf.gaussian_weights(sigma, rc))
+    filters = [jf.Filter(i, wc, "reflect") for i in range(15)]
+    if volume and not shared:
+        filters += [jf.Filter(i, tuple(float(t) for t in jf.gaussian_weights(sigma, rv)), "clamp")
+                    for i in range(15)]
+    hs = jf.hpass(lay, planes, _ssim_quantities, filters, prec)
+    vs = jf.vpass(lay, hs, [jf.Filter(i, f.weights, f.border) for i, f in enumerate(filters)], prec)
+    del hs
+    s = None
+    for c in range(3):
+        sc = _ssim_formula(*vs[5 * c:5 * c + 5], c1, c2)
+        s = sc if s is None else s + sc
+    if not volume:
+        return s, s
+    mix = channel_mixing(jf.gaussian_weights(sigma, rv))
+    return s, _mixed_ssim(vs if shared else vs[15:], mix, c1, c2)
 
 
 def ssim_both(ref8: np.ndarray, x8: np.ndarray, sigma: float = SIGMA, volume: bool = True):
@@ -131,32 +178,13 @@ def ssim_both(ref8: np.ndarray, x8: np.ndarray, sigma: float = SIGMA, volume: bo
     for c in range(3):
         planes += [lay.upload(ref8[..., c], prec), lay.upload(x8[..., c], prec)]
 
-    def quantities(v):
-        q = []
-        for c in range(3):
-            a, b = v[2 * c], v[2 * c + 1]
-            q += [a, b, a * a, b * b, a * b]
-        return q
-
-    wc = tuple(float(t) for t in jf.gaussian_weights(sigma, rc))
-    filters = [jf.Filter(i, wc, "reflect") for i in range(15)]
-    if volume and not shared:
-        filters += [jf.Filter(i, tuple(float(t) for t in jf.gaussian_weights(sigma, rv)), "clamp")
-                    for i in range(15)]
-    hs = jf.hpass(lay, planes, quantities, filters, prec)
-    vs = jf.vpass(lay, hs, [jf.Filter(i, f.weights, f.border) for i, f in enumerate(filters)], prec)
-    del hs
     c1, c2 = (K1 * DATA_RANGE) ** 2, (K2 * DATA_RANGE) ** 2
-    s = None
-    for c in range(3):
-        sc = _ssim_formula(*vs[5 * c:5 * c + 5], c1, c2)
-        s = sc if s is None else s + sc
+    s, v = _ssim_core(lay, planes, sigma, volume, c1, c2)
     smap = lay.download(s * (1.0 / 3.0))
     mean = float(smap[rc:h - rc, rc:w - rc].mean(dtype=np.float64))
     if not volume:
         return mean, smap, None
-    mix = channel_mixing(jf.gaussian_weights(sigma, rv))
-    vmap = lay.download(_mixed_ssim(vs if shared else vs[15:], mix, c1, c2))
+    vmap = lay.download(v)
     if shared:
         ys, xs, vals = _volume_frame(lay, planes, sigma, c1, c2)
         vmap[ys, xs] = vals
