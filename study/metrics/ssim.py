@@ -80,10 +80,22 @@ def _volume_frame(lay: jf.Layout, planes: list, sigma: float, c1: float, c2: flo
     """(rows, cols, per-pixel channel sum of the volume SSIM) on the pixels within the filter radius
     of a border, where 'replicate' and 'reflect' differ: a direct 2-D window per pixel, 'replicate'
     (clamped) taps, float64."""
-    J = jf.jit()
-    ys, xs = _frame_pixels(lay, matlab_radius(sigma))
-    y, x = J.Int32(ys.astype(np.int32)), J.Int32(xs.astype(np.int32))
+    ys, xs, y, x = _frame_of(lay, matlab_radius(sigma))
     return ys, xs, _volume_frame_core(lay, planes, y, x, sigma, c1, c2).numpy()
+
+
+_FRAMES: dict = {}
+
+
+def _frame_of(lay: jf.Layout, r: int):
+    """The frame's pixels as numpy and as Dr.Jit arrays, made once per layout: arrays made afresh
+    from numpy memory of varying alignment made the frozen core trace again (3 recordings per
+    layout in a tiny study)."""
+    if (lay, r) not in _FRAMES:
+        J = jf.jit()
+        ys, xs = _frame_pixels(lay, r)
+        _FRAMES[(lay, r)] = (ys, xs, J.Int32(ys.astype(np.int32)), J.Int32(xs.astype(np.int32)))
+    return _FRAMES[(lay, r)]
 
 
 @dr.freeze
