@@ -114,6 +114,7 @@ class Planner:
         self.store = Store(Path(ctx.cache_root))
         self.plan = Plan()
         self._run_task_of: dict = {}     # run key -> key of the run task that makes it
+        self._feeds_of: dict = {}        # run key -> [(metrics folder, key)] the planned run is judged into
         self._metrics_task_of: dict = {}  # metrics key -> key of the metrics task that judges it
 
     def settings(self, scene, protocol: str) -> dict:
@@ -191,14 +192,19 @@ class Planner:
             shared = {c.label: self._run_task_of[test.run_keys[c.label]] for c in need_run
                       if test.run_keys[c.label] in self._run_task_of}
             need_run = [c for c in need_run if c.label not in shared]
+            for c in missing:     # the metrics each planned run feeds (run_task skips a run judged meanwhile)
+                if test.run_keys[c.label] in self._feeds_of:
+                    self._feeds_of[test.run_keys[c.label]].append((test.metrics_folders[c.label], test.metrics_keys[c.label]))
             run_dep = ()
             if need_run:
                 rdeps = tuple(self._reference(spec, scene, t, w, h, self.display_settings) for t in kept_t) \
                     if any(c.make().inputs.display for c in need_run) else ()
                 rkey = task_key("runs", sorted(test.run_keys[c.label] for c in need_run))
+                feeds = {c.label: [(test.metrics_folders[c.label], test.metrics_keys[c.label])] for c in need_run}
+                self._feeds_of.update({test.run_keys[c.label]: feeds[c.label] for c in need_run})
                 self.plan.tasks[rkey] = Task(rkey, "run", RT.run_task, (
                     self.ctx, spec, w, h, protocol, need_run, {c.label: test.run_keys[c.label] for c in need_run},
-                    {c.label: test.run_folders[c.label] for c in need_run}, self.display_settings), rdeps)
+                    {c.label: test.run_folders[c.label] for c in need_run}, self.display_settings, feeds), rdeps)
                 run_dep = (rkey,)
                 self._run_task_of.update({test.run_keys[c.label]: rkey for c in need_run})
             # one metrics task judges the test's missing techniques together (study.engine.judge); a

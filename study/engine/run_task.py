@@ -2,6 +2,7 @@
 judged frame filed in the cache as it is made."""
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 
 from provenance import task_key
@@ -11,17 +12,25 @@ from study.engine.tasks import Context, TaskError, _deterministic, _setup, displ
 
 @_deterministic
 def run_task(ctx: Context, scene_spec: str, w: int, h: int, protocol, configs: list, keys: dict,
-             folders: dict, display_settings: dict, deps=()) -> dict:
+             folders: dict, display_settings: dict, feeds: dict | None = None, deps=()) -> dict:
     """Run the techniques `configs` (sharing raster frames) over `protocol` on one scene; file each
     technique's judged frames under its key. A display-space technique sees each frame's display
-    transform (study.engine.tasks.display_of). Returns label -> done record summary."""
+    transform (study.engine.tasks.display_of). `feeds`: label -> the (metrics folder, key) its run
+    is judged into; a run another study made, judged and pruned meanwhile is not made again.
+    Returns label -> done record summary."""
     store = _setup(ctx)
     scene = load_scene(scene_spec)
     out, todo = {}, []
-    lock = task_key("run-lock", sorted(keys.values()))
-    with store.lock(lock):
+    # a lock per run, not per task: a study planned while another was sealing this task's runs one
+    # by one groups the rest differently, and a per-task lock let both compute them (tested)
+    with contextlib.ExitStack() as locks:
+        for lock in sorted(task_key("run-lock", k) for k in set(keys.values())):   # one order: no deadlock
+            locks.enter_context(store.lock(lock))
         for c in configs:
             rec = store.done(Path(folders[c.label]), keys[c.label], whole=True)
+            judged = (feeds or {}).get(c.label)
+            if rec is None and judged and all(store.done(Path(f), k) is not None for f, k in judged):
+                rec = store.done(Path(folders[c.label]), keys[c.label])
             if rec is not None:
                 out[c.label] = _run_summary(rec, computed=False)
             else:
