@@ -13,6 +13,7 @@ A key is `task_key(kind, data, inputs, code)`:
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import sys
 import sysconfig
@@ -71,6 +72,24 @@ def _file_digest(path: str, mtime_ns: int) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
+_SNAPSHOT: dict | None = None
+
+
+@contextlib.contextmanager
+def code_snapshot():
+    """Within the block each set of modules is hashed once: a plan's keys see one state of the code
+    (a quick study's plan keyed 5359 tasks, each reading the state of some 50 files again)."""
+    global _SNAPSHOT
+    outer = _SNAPSHOT
+    if outer is None:
+        _SNAPSHOT = {}
+    try:
+        yield
+    finally:
+        if outer is None:
+            _SNAPSHOT = None
+
+
 def code_token(*objs) -> str:
     """Hash of the source of the given modules/classes/functions and the own modules they use."""
     names: set[str] = set()
@@ -81,11 +100,22 @@ def code_token(*objs) -> str:
         if not _own_module(mod):
             continue
         names.update(_closure(mod.__name__))
+    memo = frozenset(names)
+    if _SNAPSHOT is not None and memo in _SNAPSHOT:
+        return _SNAPSHOT[memo]
     h = hashlib.sha256()
     for path in code_files(names):
         h.update(path.name.encode())
         h.update(_file_digest(str(path), path.stat().st_mtime_ns).encode())
-    return h.hexdigest()[:16]
+    token = h.hexdigest()[:16]
+    if _SNAPSHOT is not None:
+        _SNAPSHOT[memo] = token
+    return token
+
+
+@lru_cache(maxsize=None)
+def _source_of(name: str, file: str) -> Path:
+    return Path(file).resolve()
 
 
 def code_files(names) -> list[Path]:
@@ -93,7 +123,7 @@ def code_files(names) -> list[Path]:
     out = []
     for name in sorted(names):
         mod = sys.modules[name]
-        path = Path(mod.__file__).resolve()
+        path = _source_of(name, mod.__file__)
         out.append(path)
         for pattern in getattr(mod, "__code_files__", ()):
             out += sorted(p.resolve() for p in path.parent.glob(pattern) if p.is_file())
@@ -115,4 +145,4 @@ def task_key(kind: str, data=None, inputs=(), code=()) -> str:
     return f"{kind}-{tokenize(kind, data, sorted(inputs) if isinstance(inputs, set) else list(inputs), code_token(*code))[:20]}"
 
 
-__all__ = ["task_key", "code_token", "closure_files", "tokenize"]
+__all__ = ["task_key", "code_token", "code_snapshot", "closure_files", "tokenize"]

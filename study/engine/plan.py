@@ -114,6 +114,7 @@ class Planner:
         self.store = Store(Path(ctx.cache_root))
         self.plan = Plan()
         self._run_task_of: dict = {}     # run key -> key of the run task that makes it
+        self._ref_keys: dict = {}
         self._feeds_of: dict = {}        # run key -> [(metrics folder, key)] the planned run is judged into
         self._metrics_task_of: dict = {}  # metrics key -> key of the metrics task that judges it
 
@@ -122,10 +123,13 @@ class Planner:
 
     # -- keys ----------------------------------------------------------------------------------------
     def reference_key(self, scene, t: int, w: int, h: int, settings: dict) -> str:
-        return task_key("reference", {"scene": scene.content_hash, "t": t, "res": (w, h),
-                                      "camera": scene.camera(t, w, h).to_world.round(12).tolist(),
-                                      "settings": settings},
-                        code=CODE["reference"])
+        memo = (scene.content_hash, t, w, h, repr(sorted(settings.items())))
+        if memo not in self._ref_keys:     # each test asks again for the frames it shares with others
+            self._ref_keys[memo] = task_key("reference", {"scene": scene.content_hash, "t": t, "res": (w, h),
+                                                          "camera": scene.camera(t, w, h).to_world.round(12).tolist(),
+                                                          "settings": settings},
+                                            code=CODE["reference"])
+        return self._ref_keys[memo]
 
     def _reference(self, spec: str, scene, t: int, w: int, h: int, settings: dict) -> str:
         key = self.reference_key(scene, t, w, h, settings)

@@ -12,7 +12,7 @@ import math
 import sys
 from pathlib import Path
 
-from provenance import task_key
+from provenance import code_snapshot, task_key
 from references import ReferenceCache
 from references.settings import SE_BOUND_LSB
 from scenes import ResolvedScene
@@ -115,7 +115,8 @@ class Study:
         agree, settled = agreement and not figures, False
         with Session(self.executor, self.log) as session:     # one cluster for every round
             while True:
-                plan, scenes, statics, ghosts, sweeps = self.plan(specs, configs, agree, sweep, ghosting)
+                with code_snapshot():
+                    plan, scenes, statics, ghosts, sweeps = self.plan(specs, configs, agree, sweep, ghosting)
                 tests = {(t.scene, t.protocol.name) for t in statics + ghosts + sweeps}
                 for k in sorted(tests):
                     b, seen = self.bound_of(*k), tried.setdefault(k, [])
