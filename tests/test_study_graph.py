@@ -154,6 +154,11 @@ def test_the_default_executor_shares_the_cores_and_runs_a_small_plan_in_process(
         got = s.execute(NS(tasks=tasks, cached={"c": 7}), progress=False)
         assert s._client is None
     assert got == {"c": 7, **{f"k{i}": i * i for i in range(E.AUTO_MIN_TASKS - 1)}}
+    # nor do references whose file is there (cache hits: an A/B after a study plans dozens)
+    hits = {f"r{i}": NS(fn=pow, args=(i, 3), deps=(), kind="reference", likely_cached=True) for i in range(20)}
+    with E.Session(E.Executor("auto", workers=2)) as s:
+        got = s.execute(NS(tasks={**tasks, **hits}, cached={}), progress=False)
+        assert s._client is None and got["r2"] == 8
 
 
 def test_an_auto_plan_runs_on_a_cluster_whose_workers_have_the_cores_shared_out(tmp_path):

@@ -1,7 +1,8 @@
 """Execution: where a plan's tasks run. Dask runs them; this module only chooses the scheduler.
 
   auto         (default) a distributed.LocalCluster of one worker process per core (at most 4),
-               the cores shared out as Dr.Jit threads, for a plan of AUTO_MIN_TASKS tasks or more;
+               the cores shared out as Dr.Jit threads, for a plan of AUTO_MIN_TASKS tasks or more
+               (not counting references whose file is there: cache hits);
                a smaller plan (an A/B of one edited technique, a re-judged table) in-process, as
                starting the workers would cost more than it saves.
   in-process   Dask's synchronous scheduler in this process (`--workers 1`: one process, for
@@ -162,7 +163,7 @@ class Session:
         keys = list(dsk)
         bar = _Bar(plan, progress)
         try:
-            client = self._connect(len(plan.tasks))
+            client = self._connect(sum(not getattr(t, "likely_cached", False) for t in plan.tasks.values()))
             if client is None:
                 import dask
                 from dask.callbacks import Callback

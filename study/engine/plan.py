@@ -42,6 +42,7 @@ class Task:
     fn: object
     args: tuple
     deps: tuple = ()
+    likely_cached: bool = False   # its artefact's file is there: a cache hit, unless damaged
 
 
 @dataclass
@@ -134,7 +135,10 @@ class Planner:
     def _reference(self, spec: str, scene, t: int, w: int, h: int, settings: dict) -> str:
         key = self.reference_key(scene, t, w, h, settings)
         if key not in self.plan.tasks:
-            self.plan.tasks[key] = Task(key, "reference", R.reference_task, (self.ctx, spec, t, w, h, dict(settings)))
+            from references import ReferenceCache
+            there = ReferenceCache(self.store.root).key_and_path(scene, t, w, h, **settings)[1].is_file()
+            self.plan.tasks[key] = Task(key, "reference", R.reference_task, (self.ctx, spec, t, w, h, dict(settings)),
+                                        likely_cached=there)
         return key
 
     # -- tests -----------------------------------------------------------------------------------------
