@@ -114,7 +114,7 @@ def code_token(*objs) -> str:
 
 
 @lru_cache(maxsize=None)
-def _source_of(name: str, file: str) -> Path:
+def _source_of(file: str) -> Path:
     return Path(file).resolve()
 
 
@@ -123,7 +123,7 @@ def code_files(names) -> list[Path]:
     out = []
     for name in sorted(names):
         mod = sys.modules[name]
-        path = _source_of(name, mod.__file__)
+        path = _source_of(mod.__file__)
         out.append(path)
         for pattern in getattr(mod, "__code_files__", ()):
             out += sorted(p.resolve() for p in path.parent.glob(pattern) if p.is_file())

@@ -115,19 +115,13 @@ class ReferenceCache:
         return self.path(scene, self.key(scene, t, width, height, bound_lsb=se_bound_lsb, target=target_noise_db,
                                          spp_per_pass=spp_per_pass)).exists()
 
-    def key_and_path(self, scene: ResolvedScene, t: int, width: int, height: int, *, se_bound_lsb=S.SE_BOUND_LSB,
-                     target_noise_db=S.TARGET_NOISE_DB, spp_per_pass=2) -> tuple[str, Path]:
-        """The key and file of the reference get() returns for these arguments."""
-        key = self.key(scene, t, width, height, bound_lsb=se_bound_lsb, target=target_noise_db,
-                       spp_per_pass=spp_per_pass)
-        return key, self.path(scene, key)
-
     def get(self, scene: ResolvedScene, t: int, width: int, height: int, *, se_bound_lsb=S.SE_BOUND_LSB,
             target_noise_db=S.TARGET_NOISE_DB, spp_per_pass=2, progress=None) -> tuple[Reference, bool]:
         """(reference, was_cached): every pixel's display-domain SE <= se_bound_lsb (8-bit LSB)
         and the mean noise >= target_noise_db, or the pixels that hit the sample cap counted."""
-        key, path = self.key_and_path(scene, t, width, height, se_bound_lsb=se_bound_lsb,
-                                      target_noise_db=target_noise_db, spp_per_pass=spp_per_pass)
+        key = self.key(scene, t, width, height, bound_lsb=se_bound_lsb, target=target_noise_db,
+                       spp_per_pass=spp_per_pass)
+        path = self.path(scene, key)
         if path.exists():
             ref = self._read(path, key, (height, width, 3))
             if ref is not None:

@@ -91,8 +91,7 @@ def _executor(workers, threads, scheduler):
             _fail(f"TAA_STUDY_WORKERS={raw!r}: give a whole number of worker processes, 1 or more")
         workers = int(raw)
     if workers is None:
-        ex = Executor.auto()
-        return Executor(ex.kind, workers=ex.workers, threads=threads)
+        return Executor.auto(threads)
     if workers > 1:
         return Executor("local", workers=workers, threads=threads)
     return Executor("in-process", threads=threads)

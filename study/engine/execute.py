@@ -46,11 +46,11 @@ class Executor:
     address: str | None = None
 
     @classmethod
-    def auto(cls) -> "Executor":
+    def auto(cls, threads: int | None = None) -> "Executor":
         n = cores()
         if n < 2:
-            return cls("in-process")
-        return cls("auto", workers=min(n, AUTO_MAX_WORKERS))
+            return cls("in-process", threads=threads)
+        return cls("auto", workers=min(n, AUTO_MAX_WORKERS), threads=threads)
 
     def worker_threads(self) -> int | None:
         """Dr.Jit threads of each cluster worker: the user's, else this machine's cores shared out."""
@@ -188,8 +188,3 @@ class Session:
             bar.close()
         return results
 
-
-def execute(plan, executor: Executor = Executor(), progress: bool = True, log=print) -> dict:
-    """One plan on its own session (a cluster started and closed for it)."""
-    with Session(executor, log) as session:
-        return session.execute(plan, progress)

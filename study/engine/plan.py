@@ -136,9 +136,8 @@ class Planner:
         key = self.reference_key(scene, t, w, h, settings)
         if key not in self.plan.tasks:
             from references import ReferenceCache
-            there = ReferenceCache(self.store.root).key_and_path(scene, t, w, h, **settings)[1].is_file()
             self.plan.tasks[key] = Task(key, "reference", R.reference_task, (self.ctx, spec, t, w, h, dict(settings)),
-                                        likely_cached=there)
+                                        likely_cached=ReferenceCache(self.store.root).has(scene, t, w, h, **settings))
         return key
 
     # -- tests -----------------------------------------------------------------------------------------

@@ -268,13 +268,12 @@ def _filtered(lay: jf.Layout, rgb, c: _Consts):
     depend on the test image, so a caller judging many images against one reference keeps it."""
     planes = _ycxcz(rgb)
     dr.eval(planes)
-    quantities = _flip_quantities
 
     gY, gCx, gZ1, gZ2 = c.spatial
     g, dg, ddg = c.feature
     hf = [jf.Filter(0, gY), jf.Filter(1, gCx), jf.Filter(2, gZ1), jf.Filter(2, gZ2),
           jf.Filter(3, g), jf.Filter(3, dg), jf.Filter(3, ddg)]
-    hs = jf.hpass(lay, planes, quantities, hf, "float32")
+    hs = jf.hpass(lay, planes, _flip_quantities, hf, "float32")
     dr.eval(hs)
     vf = [jf.Filter(0, gY), jf.Filter(1, gCx), jf.Filter(2, gZ1), jf.Filter(3, gZ2),
           jf.Filter(5, g), jf.Filter(6, g), jf.Filter(4, dg), jf.Filter(4, ddg)]
