@@ -94,4 +94,31 @@ def opaque(cls, *values):
     return comps[0] if cls is mi.Float else cls(*comps)
 
 
-__all__ = ["dr", "mi", "VARIANT", "BackendError", "find_libllvm", "opaque"]
+ALIGN = 64
+
+
+def aligned(a, dtype=None):
+    """`a` as a C-contiguous numpy array whose memory starts on a 64-byte boundary (a copy only
+    when it does not). Dr.Jit maps a contiguous numpy array's memory instead of copying it, and
+    the kernel that reads it states that memory's alignment (`align 64` or `align 1`): from
+    numpy's allocator, 16-byte aligned, the same frame's kernel came out one way or the other by
+    chance, and was compiled again (a flaky kernel-reuse test, 2 runs in 40). Only arrays loaded at
+    each lane's own index are affected; a gather's source states no alignment."""
+    import numpy as np
+    a = np.asarray(a, dtype)
+    if a.flags.c_contiguous and a.ctypes.data % ALIGN == 0:
+        return a
+    buf = np.empty(a.nbytes + ALIGN, np.uint8)
+    off = -buf.ctypes.data % ALIGN
+    out = buf[off:off + a.nbytes].view(a.dtype).reshape(a.shape)
+    out[...] = a
+    return out
+
+
+def array(cls, a, dtype=None):
+    """A flat Dr.Jit array of type `cls` from numpy data `a`, read from 64-byte aligned memory so
+    that its kernels do not depend on where numpy happened to allocate it (see `aligned`)."""
+    return cls(aligned(a, dtype).reshape(-1))
+
+
+__all__ = ["dr", "mi", "VARIANT", "BackendError", "find_libllvm", "opaque", "aligned", "array"]

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from backend import dr, mi, opaque
+from backend import array, dr, mi, opaque
 from scenes import ResolvedScene
 from scenes.camera import CameraState
 from shading import Surface, albedo_at, frame_geometry, shade
@@ -73,8 +73,8 @@ class Rasterizer:
         return self._geo_cache[1]
 
     def _prev_positions(self, prev_t: int) -> mi.Float:
-        return mi.Float(np.concatenate([self.scene.world_vertices(i, prev_t).astype(np.float32)
-                                        for i in range(len(self.scene.meshes))]).ravel())
+        return array(mi.Float, np.concatenate([self.scene.world_vertices(i, prev_t)
+                                               for i in range(len(self.scene.meshes))]), np.float32)
 
     @staticmethod
     def _reconstruct(geo, cam: CameraState, idx: mi.UInt32, obj_ids: np.ndarray, prims: np.ndarray, jitter):
@@ -88,11 +88,11 @@ class Rasterizer:
         ray_d = (_vec(cam.to_world, 0) * ((2 * sx / W - 1) * tx) + _vec(cam.to_world, 1) * ((1 - 2 * sy / H) * ty)
                  - _vec(cam.to_world, 2))
         ray_o = opaque(mi.Point3f, *cam.position)
-        obj = mi.UInt32(np.ascontiguousarray(obj_ids, np.uint32))
+        obj = array(mi.UInt32, obj_ids, np.uint32)
         valid = obj > 0
-        face_off = mi.UInt32(geo.face_offset.astype(np.uint32))
+        face_off = array(mi.UInt32, geo.face_offset, np.uint32)
         face = (dr.gather(mi.UInt32, face_off, dr.maximum(obj, 1) - 1, valid)
-                + mi.UInt32(np.ascontiguousarray(prims, np.uint32)))
+                + array(mi.UInt32, prims, np.uint32))
         i0, i1, i2 = (dr.gather(mi.UInt32, geo.faces, face * 3 + k, valid) for k in range(3))
         v0, v1, v2 = (_gather3(geo.positions, i) for i in (i0, i1, i2))
         e1, e2 = v1 - v0, v2 - v0
@@ -131,7 +131,7 @@ class Rasterizer:
         if len(sel):
             cam = self.scene.camera(t, W, H)
             geo = self.geometry(t)
-            idx = mi.UInt32(sel.astype(np.uint32))
+            idx = array(mi.UInt32, sel, np.uint32)
             for jit in offsets:
                 obj_np, prim_np = self.vis.render(self.scene, t, cam.view(), cam.projection(jit))
                 o, pr = obj_np.ravel()[sel], prim_np.ravel()[sel]

@@ -36,7 +36,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 import backend  # noqa: F401  (selects libLLVM and the Mitsuba variant before drjit loads)
-from backend import dr, mi
+from backend import array, dr, mi
 
 from . import sanitize
 
@@ -252,13 +252,13 @@ def to_drjit(bufs: dict[str, np.ndarray]) -> dict:
     out = {}
     for key, a in bufs.items():
         if key in ("color", "albedo"):
-            out[key] = dr.unravel(mi.Color3f, mi.Float(a.reshape(-1)))
+            out[key] = dr.unravel(mi.Color3f, array(mi.Float, a))
         elif key == "motion":
-            out[key] = dr.unravel(mi.Vector2f, mi.Float(a.reshape(-1)))
+            out[key] = dr.unravel(mi.Vector2f, array(mi.Float, a))
         elif key == "object_id":
-            out[key] = mi.Int32(a.reshape(-1))
+            out[key] = array(mi.Int32, a)
         else:
-            out[key] = mi.Float(a.reshape(-1))
+            out[key] = array(mi.Float, a)
     return out
 
 

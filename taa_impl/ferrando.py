@@ -64,7 +64,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import backend  # noqa: F401
-from backend import dr, mi
+from backend import array, dr, mi
 
 from . import kernels as K
 from .base import SHARPEN_KERNELS, Technique, sharpen_weight
@@ -147,7 +147,7 @@ def motion_from_depth(depth: np.ndarray, current, previous) -> np.ndarray:
     _camera_check(previous, "previous")
     h, w = np.shape(depth)
     grid = K.Grid(w, h)
-    v = camera_motion(grid, mi.Float(np.asarray(depth, np.float32).reshape(-1)), current, previous)
+    v = camera_motion(grid, array(mi.Float, depth, np.float32), current, previous)
     return np.asarray(dr.ravel(v), np.float32).reshape(h, w, 2).copy()
 
 

@@ -53,7 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import backend  # noqa: F401
-from backend import dr, mi
+from backend import array, dr, mi
 
 from . import kernels as K
 from . import sanitize
@@ -206,8 +206,8 @@ class SparseTAA(BaselineTAA):
             ss_np = np.where(bad[..., None], c_np, ss_np)
         self.last_nonfinite["supersampled"] = int(bad.sum())
         self.last_nonfinite_count += int(bad.sum())
-        m = mi.Bool(mask_np.reshape(-1))
-        ss = dr.unravel(mi.Color3f, mi.Float(ss_np.reshape(-1)))
+        m = array(mi.Bool, mask_np)
+        ss = dr.unravel(mi.Color3f, array(mi.Float, ss_np))
         out = dr.select(m, ss, blend)
         dr.eval(out)
         self._history = out
