@@ -268,3 +268,48 @@ def test_decide_refines_each_test_on_its_own_and_leaves_a_settled_one_alone():
     levels.update(finer)
     finer, judged = decide({A: {f: (40.004, 0.002)}, B: {f: (30.11, 0.001)}}, before, levels, p, over, drifts)
     assert judged == {B} and over[A] == [] and drifts[A][f] == 0.0
+
+
+@pytest.mark.long(seconds=25)
+def test_a_study_of_the_same_tasks_replays_the_precision_decisions(tmp_path, monkeypatch):
+    """A no-op study plans its probe and its final round only (the rounds between are the earlier
+    study's decisions, recorded), and states the same bounds, drifts and figures as a study that
+    decides afresh; an edited technique's probe is a new key, so it decides afresh."""
+    from study_fixtures import write_scenes
+    from study.config.profile import get_profile
+    from study.config.techniques import TechniqueConfig
+    from study.engine.runner import Study
+    scenes = write_scenes(tmp_path)[:1]
+    configs = [TechniqueConfig.parse(s) for s in ("taa_baseline", "noaa")]
+    plans = []
+    real_plan = Study.plan
+
+    def counting_plan(self, *a, **k):
+        plans.append(k.get("agreement", a[2] if len(a) > 2 else True))
+        return real_plan(self, *a, **k)
+    monkeypatch.setattr(Study, "plan", counting_plan)
+
+    def study(cs=configs):
+        plans.clear()
+        s = Study(get_profile("quick"), cache_root=tmp_path / "cache", progress=False)
+        res = s.run(scenes, cs, agreement=True)
+        figs = {(t.scene, t.test): (t.per_frame, t.uncertainty, t.temporal_u)
+                for t in res.statics + [g for gs in res.ghosts.values() for g in gs]}
+        return res, figs, len(plans), s.drifts
+
+    first, figs1, n1, drifts1 = study()
+    rounds = {k: p["rounds"] for k, per in first.precision.items() for p in per.values()}
+    # probed, then refined, then the agreement against the final references
+    assert n1 >= 3 and min(len(r) for r in rounds.values()) >= 2 and plans[-1], (n1, rounds)
+    again, figs2, n2, drifts2 = study()
+    assert n2 == 2 and again.stats["tasks"] == {} and again.agreements == first.agreements
+    assert again.precision == first.precision and drifts2 == drifts1 and figs2 == figs1
+    # afresh (the record removed): the same decisions, from the rounds themselves
+    for p in (tmp_path / "cache" / "precision").rglob("*.json"):
+        p.unlink()
+    fresh, figs3, n3, drifts3 = study()
+    assert n3 == n1 and fresh.precision == first.precision and drifts3 == drifts1 and figs3 == figs1
+    relabelled = [configs[0], TechniqueConfig.parse("other=noaa")]    # the same content: the same keys
+    assert study(relabelled)[2] == 2
+    edited = [TechniqueConfig.parse("taa_baseline:k_min=0.5"), configs[1]]
+    assert study(edited)[2] >= 3

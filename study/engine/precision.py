@@ -117,3 +117,24 @@ def decide(now: dict, before: dict, levels: dict, precision, over: dict, drifts:
             finer[k] = needed_level(figs, precision.tolerances, level, precision.levels())
         before[k] = (b, now[k])
     return finer, judged
+
+
+def to_record(levels: dict, tried: dict, over: dict, drifts: dict) -> dict:
+    """A study's decisions as JSON: each test's final level, the bounds it was rendered to, its
+    figures over tolerance and its drifts. A study whose probe plans the same tasks under the same
+    rule decides the same (every task is deterministic), so it replays these instead of planning
+    and reading every round again."""
+    return {"tests": [{"test": list(k), "level": levels.get(k, 0), "tried": list(tried[k]),
+                       "over": [list(x) for x in over.get(k, [])],
+                       "drift": [[*f, d] for f, d in drifts.get(k, {}).items()]} for k in sorted(tried)]}
+
+
+def from_record(rec: dict) -> tuple[dict, dict, dict, dict]:
+    """(levels, tried, over, drifts) of a to_record record."""
+    levels, tried, over, drifts = {}, {}, {}, {}
+    for t in rec["tests"]:
+        k = tuple(t["test"])
+        levels[k], tried[k] = int(t["level"]), list(t["tried"])
+        over[k] = [tuple(x) for x in t["over"]]
+        drifts[k] = {tuple(d[:-1]): d[-1] for d in t["drift"]}
+    return levels, tried, over, drifts

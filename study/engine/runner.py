@@ -22,6 +22,7 @@ from study.config.techniques import TechniqueConfig
 from study.engine.execute import Executor, Session
 from study.engine.plan import Planner
 from study.config.precision import Precision
+from study.engine import precision as P
 from study.engine.precision import decide, figures_of
 from study.engine.results import Artefacts, StudyResults, TestResult, view
 from study.engine.tasks import Context, _deterministic, display_of, load_scene
@@ -113,10 +114,18 @@ class Study:
         figures = self.precision.rule == "figures"
         # the agreement (64-256 raster frames a scene) only against the static test's final references
         agree, settled = agreement and not figures, False
+        memo = None                   # the record of this study's decisions (figures rule)
         with Session(self.executor, self.log) as session:     # one cluster for every round
             while True:
                 with code_snapshot():
                     plan, scenes, statics, ghosts, sweeps = self.plan(specs, configs, agree, sweep, ghosting)
+                if figures and memo is None:      # the probe's plan: did a study decide from it before?
+                    memo = self._decisions(plan, agreement)
+                    if memo["replayed"]:
+                        self.levels, tried, over, self.drifts = P.from_record(memo["replayed"])
+                        self.log("precision: every test's bound as decided by an earlier study of the same tasks")
+                        agree, settled = agreement, True        # the final round alone: plan it
+                        continue
                 tests = {(t.scene, t.protocol.name) for t in statics + ghosts + sweeps}
                 for k in sorted(tests):
                     b, seen = self.bound_of(*k), tried.setdefault(k, [])
@@ -155,6 +164,8 @@ class Study:
                         break
                     agree = settled = True       # one more round: the agreements alone (the rest is cached)
                 self.levels.update(finer)
+        if memo is not None and not memo["replayed"]:
+            memo["store"].save_record(memo["path"], memo["key"], P.to_record(self.levels, tried, over, self.drifts))
         results: dict = {}
         for _, r in rounds:       # a task's first round is the one that computed it; later ones find it cached
             for k, v in r.items():
@@ -195,6 +206,18 @@ class Study:
             out.ghosts.setdefault(t.protocol.name, []).append(self._with_drift(self._result(t, results, costs)))
         out.sweeps = [self._with_drift(self._result(t, results, costs)) for t in sweeps]
         return out
+
+    def _decisions(self, plan, agreement: bool) -> dict:
+        """Where this study's precision decisions are recorded: keyed by the probe's figures (every
+        test's metrics keys: scene, techniques, code, references' settings), the rule and the code
+        that decides; with the record of an earlier study of that key, if one is there."""
+        from study.engine.store import Store
+        store = Store(self.cache.root)
+        key = task_key("precision", {"precision": repr(self.precision), "agreement": agreement,
+                                     "metrics": sorted(k for t in plan.tests for k in t.metrics_keys.values())},
+                       code=["study.engine.precision", "study.engine.runner"])
+        path = store.record_path("precision", "decisions", key)
+        return {"store": store, "path": path, "key": key, "replayed": store.load_record(path, key)}
 
     def _with_drift(self, res: TestResult) -> TestResult:
         """A figure's stated uncertainty: its halves' plus its change from the coarser bound."""
