@@ -127,3 +127,41 @@ def test_a_crash_while_writing_an_artefact_leaves_no_done_record(tmp_path, monke
     rec = st.save_folder(folder, "k", {"frame_0001.exr": img, "frame_0002.exr": img}, {"frames": [1, 2]})
     assert st.done(folder, "k", verify_files=True) == rec and sorted(rec["files"]) == ["frame_0001.exr",
                                                                                        "frame_0002.exr"]
+
+
+def test_remembered_hashes_still_catch_an_edit_that_restores_the_modification_time(tmp_path, monkeypatch):
+    """A file's hash is remembered with its state, so a second check reads no file; an edit of the
+    same size with its modification time set back is still found (the change time moved), and a
+    file changed within the last 2 s is not remembered."""
+    import time
+
+    import numpy as np
+
+    from study.engine import store as S
+    calls = []
+    real = S.sha256_file
+    monkeypatch.setattr(S, "sha256_file", lambda p: calls.append(p) or real(p))
+    monkeypatch.setattr(S, "_HASHES", {})
+    store = S.Store(tmp_path)
+    folder = tmp_path / "runs" / "x"
+    rec = store.save_folder(folder, "k", {"frame_0000.exr": np.full((4, 4, 3), 0.5, np.float32)}, {})
+    calls.clear()
+    assert store.done(folder, "k", verify_files=True) is not None
+    assert len(calls) == 1                       # just written: hashed, not remembered
+    monkeypatch.setattr(S, "_SETTLE_NS", 0)
+    store.done(folder, "k", verify_files=True)
+    store.save_hashes()
+    monkeypatch.setattr(S, "_HASHES", {})        # a new process: the hashes come from the cache's file
+    calls.clear()
+    assert S.Store(tmp_path).done(folder, "k", verify_files=True) is not None and calls == []
+    path = folder / "frame_0000.exr"
+    st = path.stat()
+    data = bytearray(path.read_bytes())
+    data[-1] ^= 0xFF                             # same size, other content
+    time.sleep(0.01)
+    path.write_bytes(bytes(data))
+    os.utime(path, ns=(st.st_atime_ns, st.st_mtime_ns))
+    assert path.stat().st_mtime_ns == st.st_mtime_ns and path.stat().st_size == st.st_size
+    logs = []
+    assert S.Store(tmp_path, log=logs.append).done(folder, "k", verify_files=True) is None
+    assert len(calls) == 1 and "expected SHA-256" in logs[0] and rec["files"]["frame_0000.exr"][:16] in logs[0]

@@ -196,6 +196,8 @@ def run_study(profile, names, configs, out_dir, no_agreement, executor, sweep=Tr
     summary = {**res.stats, "profile": study.profile.name, "scenes": names,
                "techniques": [c.label for c in configs], "executor": executor.describe()}
     write_study(out, res, configs, summary, start)
+    from study.engine.store import Store
+    Store(study.cache.root).save_hashes()        # the files the report checked
     click.echo((out / "tables" / "headline.md").read_text())
     if (out / "tables" / "reproduction.md").exists():
         click.echo((out / "tables" / "reproduction.md").read_text())

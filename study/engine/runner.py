@@ -166,6 +166,8 @@ class Study:
                 self.levels.update(finer)
         if memo is not None and not memo["replayed"]:
             memo["store"].save_record(memo["path"], memo["key"], P.to_record(self.levels, tried, over, self.drifts))
+        from study.engine.store import Store
+        Store(self.cache.root).save_hashes()
         results: dict = {}
         for _, r in rounds:       # a task's first round is the one that computed it; later ones find it cached
             for k, v in r.items():

@@ -97,6 +97,11 @@ def _dead_owner(owner: str) -> bool:
     return False
 
 
+_HASHES: dict[str, dict] = {}     # cache root -> {file: [inode, size, mtime_ns, ctime_ns, sha256]}
+_CHANGED: set[str] = set()
+_SETTLE_NS = 2_000_000_000        # a file changed this recently may change again within one time tick
+
+
 class Store:
     """Artefacts under `root`: folders of files with a sealed done record, and sealed JSON records."""
 
@@ -159,9 +164,54 @@ class Store:
             raise TamperError(f"{path}: dropped after it was judged (only the frames the report shows are kept)")
         if expected is None:
             raise TamperError(f"{path}: not listed in its done record")
-        found = sha256_file(path) if path.exists() else "missing"
+        found = self._sha256(path)
         if found != expected:
             raise TamperError(f"{path}: expected SHA-256 {expected[:16]}, found {found[:16]}")
+
+    def _sha256(self, path: Path) -> str:
+        """A file's SHA-256, remembered with its state (inode, size, modification and change time):
+        every write sets the change time, which no tool sets back, so a remembered hash is the
+        file's own, and a no-op study does not read every kept frame again to check it. A file
+        changed in the last 2 s is hashed but not remembered (two writes within one clock tick
+        could leave the same state, as git's index knows)."""
+        try:
+            st = path.stat()
+        except FileNotFoundError:
+            return "missing"
+        state = [st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns]
+        memo, name = self._hashes(), self._name(path)
+        got = memo.get(name)
+        if got is not None and got[:4] == state:
+            return got[4]
+        sha = sha256_file(path)
+        if time.time_ns() - st.st_ctime_ns > _SETTLE_NS:
+            memo[name] = state + [sha]
+            _CHANGED.add(str(self.root))
+        return sha
+
+    def _name(self, path: Path) -> str:
+        try:
+            return str(Path(path).relative_to(self.root))
+        except ValueError:
+            return str(Path(path).resolve())
+
+    def _hashes(self) -> dict:
+        root = str(self.root)
+        if root not in _HASHES:
+            try:
+                _HASHES[root] = json.loads((self.root / "file-hashes.json").read_text())
+            except (OSError, ValueError):      # none yet, or a damaged one: hash again
+                _HASHES[root] = {}
+        return _HASHES[root]
+
+    def save_hashes(self) -> None:
+        """Keep the remembered hashes of files still there (the next study reads them)."""
+        root = str(self.root)
+        if root not in _CHANGED or not self.root.is_dir():
+            return
+        memo = {p: v for p, v in self._hashes().items() if (self.root / p).exists()}
+        write_text_atomic(self.root / "file-hashes.json", json.dumps(memo))
+        _CHANGED.discard(root)
 
     def read_image(self, folder: Path, name: str, record: dict) -> dict:
         """Channels of one EXR of a done folder, after checking its hash."""
