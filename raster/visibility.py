@@ -12,17 +12,27 @@ from __future__ import annotations
 import os
 
 import numpy as np
-import pyrender
-from OpenGL import GL as gl
-from OpenGL import images as gl_images
-from pyrender.constants import GLTF
-from pyrender.platforms import egl
-from pyrender.shader_program import ShaderProgramCache
 
 from scenes import ResolvedScene
 
-# PyOpenGL 3.1.0 (pinned by pyrender) does not know the integer formats' component counts.
-gl_images.COMPONENT_COUNTS.setdefault(gl.GL_RG_INTEGER, 2)
+# pyrender and OpenGL, imported with the first context: pyrender's import (trimesh, scipy.spatial,
+# networkx, pyglet) took 0.8-1.6 s, which a study or report with nothing to rasterise need not pay.
+gl = pyrender = GLTF = egl = ShaderProgramCache = None
+
+
+def _import_gl() -> None:
+    global gl, pyrender, GLTF, egl, ShaderProgramCache
+    if gl is not None:
+        return
+    import pyrender as _pyrender
+    from OpenGL import GL as _gl
+    from OpenGL import images as gl_images
+    from pyrender.constants import GLTF as _GLTF
+    from pyrender.platforms import egl as _egl
+    from pyrender.shader_program import ShaderProgramCache as _Cache
+    # PyOpenGL 3.1.0 (pinned by pyrender) does not know the integer formats' component counts.
+    gl_images.COMPONENT_COUNTS.setdefault(_gl.GL_RG_INTEGER, 2)
+    pyrender, GLTF, egl, ShaderProgramCache, gl = _pyrender, _GLTF, _egl, _Cache, _gl
 
 SHADER_DIR = os.path.join(os.path.dirname(__file__), "shaders")
 __code_files__ = ("shaders/*",)   # part of this module's code identity (provenance)
@@ -39,6 +49,7 @@ def _shared_platform():
     """One surfaceless EGL context per process: pyrender's delete_context terminates the EGL
     display, which would invalidate every other context, so ours is never deleted."""
     global _PLATFORM
+    _import_gl()
     if _PLATFORM is None:
         try:
             device = egl.get_device_by_index(int(os.environ.get("EGL_DEVICE_ID", "0")))
