@@ -210,6 +210,17 @@ def render(data: dict) -> str:
         keys_help=KEYS_HELP, script=src("report.js"), style=src("report.css"), slug=slug)
 
 
+def inputs_of(data: dict) -> dict:
+    """What the page is made from: its data (the finished folder's tables and files, collect) and
+    this module's code and templates; the page is made again when either changes."""
+    import hashlib
+    h = hashlib.sha256(Path(__file__).read_bytes())
+    for f in sorted((Path(__file__).parent / "templates").iterdir()):
+        h.update(f.name.encode() + f.read_bytes())
+    blob = json.dumps(data, sort_keys=True, default=str).encode()
+    return {"data": hashlib.sha256(blob).hexdigest(), "code": h.hexdigest()}
+
+
 def page(out_dir: Path, data: dict) -> str:
     """Validate `data` against the folder it names, and render the page."""
     return render(validate(Path(out_dir), data))

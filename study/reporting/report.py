@@ -24,6 +24,11 @@ STATIC_METRICS = ["mse", "rmsd", "psnr", "snr", "ssim", "flip_ldr", "flip_hdr", 
 GHOST_METRICS = ["mse", "psnr", "ssim", "flip_ldr"]
 
 
+def _state(path: Path) -> list:
+    st = path.stat()
+    return [st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns]
+
+
 class Report(Summaries):
     """Artefacts of one study in `out`. Every file is listed in manifest.json with the keys of its
     inputs and its SHA-256; a file whose inputs and content are unchanged is not made again, and
@@ -54,11 +59,16 @@ class Report(Summaries):
         return self._display(scene, t, w, h) if self._display else DisplayTransform.from_reference(ref.image)
 
     def _unchanged(self, rel: str, inputs: dict) -> bool:
+        """The file was made from these inputs and is as written: the same state (inode, size,
+        modification and change time; any write sets the change time) or else the same hash. A
+        no-op study hashed its 1558 files (0.5 s)."""
         prev = self.previous.get(rel)
         path = self.out / rel
         if not (isinstance(prev, dict) and prev.get("inputs") == json.loads(json.dumps(inputs, default=str))
                 and path.exists()):
             return False
+        if prev.get("state") is not None and prev["state"] == _state(path):
+            return True
         from provenance.files import sha256_file
         return sha256_file(path) == prev.get("sha256")
 
@@ -73,7 +83,7 @@ class Report(Summaries):
         (write_text_atomic if isinstance(data, str) else write_bytes_atomic)(path, data)
         raw = data.encode() if isinstance(data, str) else data
         self.manifest[rel] = {"inputs": json.loads(json.dumps(inputs, default=str)),
-                              "sha256": hashlib.sha256(raw).hexdigest()}
+                              "sha256": hashlib.sha256(raw).hexdigest(), "state": _state(path)}
 
     def _table(self, stem: str, table: Table, inputs: dict) -> None:
         self._file(f"tables/{stem}.md", table.markdown(), inputs)
@@ -108,8 +118,13 @@ class Report(Summaries):
         table = thesis_layout(f"Static test, {res.test}: {res.scene}", results, STATIC_METRICS,
                               self.improved if self.improved in results else None, note, uncertainty=us)
         self._table(f"{stem}_{res.scene}", table, inputs)
-        disp = self.display(res.scene, 0, res.width, res.height, ref)
-        self._file(f"images/{stem}_{res.scene}_reference.png", lambda: png(disp.to_8bit(ref.image)),
+        shown: list = []
+
+        def disp():            # made only for an image to be made again
+            if not shown:
+                shown.append(self.display(res.scene, 0, res.width, res.height, ref))
+            return shown[0]
+        self._file(f"images/{stem}_{res.scene}_reference.png", lambda: png(disp().to_8bit(ref.image)),
                    {"reference": ref.key})
         for label, a in res.artefacts.items():
             f = a["frame"]
@@ -118,7 +133,7 @@ class Report(Summaries):
 
             def image(a=a, f=f):
                 img = self.artefacts.frame(a, f)
-                return png(display_8bit(img, a["output_space"], disp))
+                return png(display_8bit(img, a["output_space"], disp()))
             self._file(f"images/{base}.png", image, key)
             if f not in a["maps_for"]:
                 continue
@@ -220,7 +235,7 @@ class Report(Summaries):
                             for l, per in r.per_frame.items()}} for p, r in tests]}
         inputs = {"metrics": sorted({a["metrics_key"] for _, r in tests for a in r.artefacts.values()}),
                   "precision": res.precision}
-        self._file("tables/figures.json", json.dumps(doc, indent=1, sort_keys=True, default=str), inputs)
+        self._file("tables/figures.json", lambda: json.dumps(doc, indent=1, sort_keys=True, default=str), inputs)
         if not res.precision:
             return
         rows = []
@@ -252,7 +267,7 @@ class Report(Summaries):
         self.summary = {**summary, "stale_files_removed": removed}
         self._write_manifest()
 
-    def add(self, rel: str, data: str, inputs: dict) -> None:
+    def add(self, rel: str, data, inputs: dict) -> None:
         """Write and list a file made after finish (the HTML report, made from the finished folder)."""
         self._file(rel, data, inputs)
         self._write_manifest()
@@ -303,4 +318,4 @@ def write_study(out: Path, res, configs, summary: dict, start: float) -> None:
     for scene, agree in res.agreements.items():
         if scene in data["scenes"]:
             data["scenes"][scene]["agreement"] = agree
-    report.add("report.html", html_report.page(out, data), {"artefacts": sorted(report.manifest)})
+    report.add("report.html", lambda: html_report.page(out, data), html_report.inputs_of(data))
