@@ -21,7 +21,7 @@ import types
 from functools import lru_cache
 from pathlib import Path
 
-from dask.base import tokenize
+from dask.base import normalize_token, tokenize
 
 _INSTALLED = tuple(str(Path(p).resolve()) for p in {sysconfig.get_paths()["stdlib"],
                                                     sysconfig.get_paths()["purelib"],
@@ -31,10 +31,12 @@ _INSTALLED = tuple(str(Path(p).resolve()) for p in {sysconfig.get_paths()["stdli
 def _own_module(mod) -> bool:
     """A module of the project or of the user: has a source file outside Python and site-packages."""
     f = getattr(mod, "__file__", None)
-    if not f or not f.endswith(".py"):
-        return False
-    f = str(Path(f).resolve())
-    return not f.startswith(_INSTALLED)
+    return bool(f) and f.endswith(".py") and _own_file(f)
+
+
+@lru_cache(maxsize=None)
+def _own_file(f: str) -> bool:          # resolving each module's path was a fifth of a plan's keying
+    return not str(Path(f).resolve()).startswith(_INSTALLED)
 
 
 def _module_of(obj):
@@ -140,9 +142,21 @@ def closure_files(*objs) -> list[Path]:
     return code_files(names)
 
 
+class Normalized:
+    """A value already normalised for `tokenize`: it tokenises exactly as the value it was made from
+    (the same key), without walking it again. A plan keys each technique's run by the same schedule."""
+    __slots__ = ("value",)
+
+    def __init__(self, obj):
+        self.value = normalize_token(obj)
+
+
+normalize_token.register(Normalized)(lambda n: n.value)
+
+
 def task_key(kind: str, data=None, inputs=(), code=()) -> str:
     """The key of an artefact of `kind` made from `data`, the artefacts `inputs` and `code`."""
     return f"{kind}-{tokenize(kind, data, sorted(inputs) if isinstance(inputs, set) else list(inputs), code_token(*code))[:20]}"
 
 
-__all__ = ["task_key", "code_token", "code_snapshot", "closure_files", "tokenize"]
+__all__ = ["task_key", "Normalized", "code_token", "code_snapshot", "closure_files", "tokenize"]

@@ -132,3 +132,19 @@ def test_each_study_module_rekeys_only_what_it_makes(tmp_path):
         if set(kinds) != want:
             wrong[f] = (kinds, sorted(want))
     assert not wrong, wrong      # file -> (kinds it re-keys, kinds it should)
+
+
+def test_a_normalized_value_keys_exactly_as_the_value_itself():
+    """The planner keys a test's runs by its schedule normalised once: every key must be the one the
+    plain schedule gives (a changed key would re-make every cached run), and a different schedule
+    still a different key."""
+    import numpy as np
+
+    from provenance import Normalized, task_key
+    steps = [(t, t % 3, t % 2 == 0, t == 0, t - 1 if t else None, t) for t in range(40)]
+    data = {"scene": "abc", "res": (32, 18), "schedule": steps, "technique": {"p": np.float32(0.5), "n": [1, 2]}}
+    pre = dict(data, schedule=Normalized(steps))
+    assert task_key("run", pre, ["ref-1"]) == task_key("run", data, ["ref-1"])
+    assert task_key("run", [pre, pre]) == task_key("run", [data, data])
+    other = dict(data, schedule=Normalized(steps[:-1]))
+    assert task_key("run", other, ["ref-1"]) != task_key("run", data, ["ref-1"])

@@ -14,7 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from provenance import task_key
+from provenance import Normalized, task_key
 
 from study.config.protocols import Protocol, judged_steps
 from study.config.techniques import TechniqueConfig
@@ -157,15 +157,18 @@ class Planner:
         kept_t = sorted({s.t for s in schedule if s.keep})
         ref_keys = {t: self.reference_key(scene, t, w, h, settings) for t in kept_t}
         disp_keys = {t: self.reference_key(scene, t, w, h, self.display_settings) for t in kept_t}
-        missing = []
+        missing, steps = [], {}
         for c in configs:
             tech = c.make()
             inp = tech.inputs
+            seen = (inp.sampling, inp.cameras, tuple(sorted(inp.buffers)))
+            if seen not in steps:       # the techniques of a test share a few step lists
+                steps[seen] = Normalized(run_steps(schedule, inp))
             judged = judged_steps(schedule, inp.sampling)
             test.frame_times[c.label] = {s.frame: s.t for s in judged}
             # Display-space techniques see a display transform built from a reference.
             inputs = [disp_keys[t] for t in kept_t] if inp.display else []
-            key = task_key("run", {"scene": scene.content_hash, "res": (w, h), "schedule": run_steps(schedule, inp),
+            key = task_key("run", {"scene": scene.content_hash, "res": (w, h), "schedule": steps[seen],
                                    "technique": c.key_data()}, inputs, code=[type(tech), *CODE["run"]])
             folder = self.store.folder(protocol.kind, scene.name, key)
             test.run_keys[c.label], test.run_folders[c.label] = key, str(folder)
