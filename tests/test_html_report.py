@@ -438,3 +438,28 @@ def test_browser_steps_a_real_ghosting_sequence(browser, tiny_study):
     curve = g.find_element("css selector", "svg.curve polyline.current")
     assert curve.get_attribute("data-layer") == "taa_baseline"
     assert _console_errors(browser) == []
+
+
+def test_browser_opens_on_the_findings_then_the_summary_tables_then_the_scenes(browser, tmp_path):
+    data = fake_study(tmp_path)
+    data["findings"] = ["The improved TAA beats Uncharted on every static scene. Thesis: 9 of 9. Here: reproduced.",
+                        "The sharpen test: not reproduced."]
+    data["missed"] = {"tiny": ["agreement 44.17 dB < 45 dB"]}
+    data["tables"]["static_tiny"] = {"title": "Static test", "header": ["metric", "No AA"], "rows": [["PSNR", "30"]],
+                                     "links": []}
+    page = html_report.write(tmp_path, data)
+    _open(browser, page)
+    top = browser.execute_script("""
+        const y = s => document.querySelector(s).getBoundingClientRect().top + window.scrollY;
+        return {findings: y('#findings'), headline: y('#t-headline'), scene: y('#scene-tiny'),
+                other: y('#t-static_tiny'), view: window.innerHeight,
+                items: [...document.querySelectorAll('#findings li')].map(e => e.textContent),
+                warn: document.querySelector('#findings .warn').textContent,
+                mark: document.querySelector('#scene-tiny h2 .warn') !== null,
+                floor: document.querySelector('#scene-tiny .floor p').className};""")
+    assert top["findings"] < 200 and top["headline"] < top["view"]           # the first screen: the findings
+    assert top["findings"] < top["headline"] < top["scene"] < top["other"]    # then the scenes, then the rest
+    assert top["items"] == data["findings"]
+    assert "tiny" in top["warn"] and "44.17 dB < 45 dB" in top["warn"]
+    assert top["mark"] and top["floor"] == "warn"
+    assert not _console_errors(browser)

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from study.commands.ab import bootstrap_ci
+from study.reporting.intervals import bootstrap_ci
 from study.reporting.summaries import rank, spearman
 
 

@@ -13,27 +13,13 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import stats
 
 from study.config.techniques import TechniqueConfig
 from study.engine.runner import Study
 from study.metrics.suite import HIGHER_IS_BETTER
+from study.reporting.intervals import bootstrap_ci
 
 AB_METRICS = ("psnr", "ssim", "mse", "flip_ldr")
-
-
-def bootstrap_ci(diffs: np.ndarray, n: int = 2000, seed: int = 0) -> tuple[float, float] | None:
-    """95 % percentile-bootstrap interval of the mean (scipy.stats.bootstrap, `n` resamples, fixed
-    seed); None for fewer than two values. Percentile, not BCa: BCa is undefined when every
-    difference is equal (a technique against itself), which an A/B of identical code gives."""
-    diffs = np.asarray(diffs, np.float64)
-    if len(diffs) < 2:
-        return None
-    if np.all(diffs == diffs[0]):
-        return float(diffs[0]), float(diffs[0])
-    res = stats.bootstrap((diffs,), np.mean, n_resamples=n, confidence_level=0.95, method="percentile",
-                          random_state=np.random.default_rng(seed))
-    return float(res.confidence_interval.low), float(res.confidence_interval.high)
 
 
 @dataclass

@@ -98,18 +98,8 @@ def _executor(workers, threads, scheduler):
 
 
 def _strict_json(obj) -> str:
-    """One strict JSON document: NaN and infinities (undefined or unbounded figures) become null."""
-    import math
-
-    def clean(o):
-        if isinstance(o, float) and not math.isfinite(o):
-            return None
-        if isinstance(o, dict):
-            return {str(k): clean(v) for k, v in o.items()}
-        if isinstance(o, (list, tuple)):
-            return [clean(v) for v in o]
-        return o
-    return json.dumps(clean(obj), allow_nan=False, default=str)
+    from study.reporting.encode import strict_json
+    return strict_json(obj)
 
 
 EXECUTION_OPTIONS = [

@@ -93,7 +93,8 @@ class Study:
                                              maps=tuple(self.profile.static_views.values()),
                                              keep="all" if every else "maps"))
             if ghosting and is_animated(scene):
-                gconf = [c for c in configs if c.name not in self.profile.ghosting_techniques_skip]
+                skip = self.profile.ghosting_techniques_skip      # registry names or column labels
+                gconf = [c for c in configs if c.name not in skip and c.label not in skip]
                 for p in self.profile.ghosting:
                     ghosts.append(planner.add_test(spec, scene, p, gconf, w, h, maps="none",
                                                    keep="all" if every else "shown"))

@@ -1,8 +1,10 @@
-"""How the reporting writes images and names: PNG and EXR bytes, the FLIP colour map, a
-technique's output as an 8-bit display image, and file-name slugs of labels."""
+"""How the reporting writes images, names and records: PNG and EXR bytes, the FLIP colour map, a
+technique's output as an 8-bit display image, file-name slugs of labels, and strict JSON."""
 from __future__ import annotations
 
 import io
+import json
+import math
 import re
 import tempfile
 from pathlib import Path
@@ -11,6 +13,19 @@ import numpy as np
 from PIL import Image
 
 from references.exr import write_exr
+
+
+def strict_json(obj, **kw) -> str:
+    """One strict JSON document: NaN and infinities (undefined or unbounded figures) become null."""
+    def clean(o):
+        if isinstance(o, float) and not math.isfinite(o):
+            return None
+        if isinstance(o, dict):
+            return {str(k): clean(v) for k, v in o.items()}
+        if isinstance(o, (list, tuple)):
+            return [clean(v) for v in o]
+        return o
+    return json.dumps(clean(obj), allow_nan=False, default=str, **kw)
 
 
 def slug(label: str) -> str:

@@ -48,7 +48,9 @@ from pathlib import Path
 from study.reporting.encode import slug
 from study.reporting.tables import technique_columns
 
-TABLE_ORDER = ("headline", "reproduction", "history_convergence", "speed_error")
+TABLE_ORDER = ("findings", "headline", "reproduction", "sharpen_test", "history_convergence", "speed_error")
+# shown before the scenes, under the findings: what the study concludes, then the evidence
+SUMMARY_TABLES = ("findings", "headline", "reproduction", "sharpen_test")
 KEYS_HELP = [
     ("1–9", "reference (1), techniques (2…)"), ("← → or [ ]", "previous / next image"),
     ("space", "back to the last image shown"), ("i s f", "image, SSIM map, FLIP map"),
@@ -88,7 +90,15 @@ def validate(out_dir: Path, data: dict) -> dict:
         return p
 
     clean = {"title": str(data.get("title", "TAA study")), "profile": str(data.get("profile", "")),
-             "resolution": {}, "scenes": {}, "tables": {}}
+             "resolution": {}, "scenes": {}, "tables": {}, "findings": [], "missed": {}}
+    findings = data.get("findings") or []
+    _need(isinstance(findings, list) and all(isinstance(x, str) for x in findings), "findings",
+          "expected a list of sentences")
+    clean["findings"] = list(findings)
+    missed = data.get("missed") or {}
+    _need(isinstance(missed, dict) and all(isinstance(v, list) for v in missed.values()), "missed",
+          "expected a dict scene -> [targets missed]")
+    clean["missed"] = {str(k): [str(x) for x in v] for k, v in missed.items()}
     for scene, wh in (data.get("resolution") or {}).items():
         _need(isinstance(wh, (list, tuple)) and len(wh) == 2 and all(isinstance(v, int) and v > 0 for v in wh),
               f"resolution.{scene}", f"expected [width, height], got {wh!r}")
@@ -207,7 +217,20 @@ def render(data: dict) -> str:
     links = {stem: {(r, c): p for r, c, p in t["links"]} for stem, t in data["tables"].items()}
     return env.get_template("report.html.j2").render(
         data=data, model={"viewers": viewer_model(data)}, links=links, table_order=_table_order(data["tables"]),
-        keys_help=KEYS_HELP, script=src("report.js"), style=src("report.css"), slug=slug)
+        keys_help=KEYS_HELP, script=src("report.js"), style=src("report.css"), slug=slug,
+        summary_tables=[t for t in SUMMARY_TABLES if t in data["tables"]], agreement_text=agreement_text)
+
+
+def agreement_text(agree: dict | None) -> str:
+    """A scene's agreement in one line (study.reporting.findings_text), or its note as collected."""
+    from study.reporting.findings_text import agreement_line
+    if not agree:
+        return ""
+    needed = ("agreement_psnr_db", "raster_samples", "reference_se_bound_lsb", "reference_spp",
+              "reference_noise_psnr_db")
+    if all(isinstance(agree.get(k), (int, float)) for k in needed):
+        return agreement_line(agree)
+    return str(agree.get("note") or "; ".join(f"{k.replace('_', ' ')} {v}" for k, v in agree.items()))
 
 
 def inputs_of(data: dict) -> dict:
@@ -331,6 +354,9 @@ def collect(out_dir: Path) -> dict:
             data["resolution"][scene] = list(im.size)
         data["scenes"][scene] = sd
 
+    if have("tables/findings.json"):
+        from study.reporting import findings_text
+        data["findings"] = findings_text.summary(json.loads((out_dir / "tables/findings.json").read_text()))
     for rel in sorted(listed):
         if not (rel.startswith("tables/") and rel.endswith(".csv")) or not have(rel):
             continue

@@ -95,9 +95,13 @@ class Report(Summaries):
     def _floor_note(agree: dict | None) -> str:
         if not agree:
             return ""
+        from study.reporting.findings_text import agreement_missed
+        missed = agreement_missed(agree)
         return (f"Reference agreement (raster mean of {agree['raster_samples']} jittered frames vs reference): "
                 f"{agree['agreement_psnr_db']:.1f} dB; reference noise {agree['reference_noise_psnr_db']:.1f} dB "
-                f"at {agree['reference_spp']} spp")
+                f"at {agree['reference_spp']} spp"
+                + (f" – below its target ({'; '.join(missed)}): every figure of this scene carries that error." if missed
+                   else ""))
 
     @staticmethod
     def _precision_note(res) -> str:
@@ -254,6 +258,23 @@ class Report(Summaries):
                                                  ["scene", "test", "rule", "bounds tried (LSB)", "final (LSB)",
                                                   "figures over", "worst"], rows, note), inputs)
 
+    # -- findings ----------------------------------------------------------------------------
+    def findings(self, res, variants: dict) -> dict:
+        """The thesis's claims adjudicated (study.reporting.findings): tables/findings.json, the
+        claims table, the summary's LaTeX, and the sentences that open study.md."""
+        from study.reporting import findings as F
+        from study.reporting import findings_text as FT
+        from study.reporting.encode import strict_json
+        rec = F.findings(res, self.roles, variants)
+        inputs = {"findings": hashlib.sha256(strict_json(rec, sort_keys=True).encode()).hexdigest()}
+        self._file("tables/findings.json", strict_json(rec, indent=1, sort_keys=True), inputs)
+        self._file("tables/findings_summary.tex", FT.latex_summary(rec), inputs)
+        t = FT.table(rec)
+        for ext, text in (("md", t.markdown()), ("csv", t.csv()), ("tex", t.latex())):
+            self._file(f"tables/findings.{ext}", text, inputs)
+        self.markdown.insert(0, FT.markdown(rec))
+        return rec
+
     def finish(self, summary: dict) -> None:
         """study.md, then the files of the previous manifest this study did not write again are
         removed (an older run's; a file no manifest listed is the user's and stays), then the manifest."""
@@ -284,6 +305,7 @@ def write_study(out: Path, res, configs, summary: dict, start: float) -> None:
     import time
 
     from study.config.profile import thesis_roles
+    from study.reporting.findings import sharpen_variants
     from study.reporting import html_report
     report = Report(out, res.artefacts, thesis_roles(configs), res.display)
     views = res.views
@@ -299,6 +321,9 @@ def write_study(out: Path, res, configs, summary: dict, start: float) -> None:
                            title=f"Sparse supersampling: mu against cost and quality ({s.scene}, {s.test})")
     report.headline(views)
     report.reproduction(views, res.ghosts)
+    variants = sharpen_variants(configs)
+    report.sharpen_test(views, variants)
+    report.findings(res, variants)
     converged = list(views.values())[-1] if views else []
     report.speed_error(converged)
     report.history_convergence(res.statics, res.thesis_history)
@@ -315,7 +340,10 @@ def write_study(out: Path, res, configs, summary: dict, start: float) -> None:
     for scene, gv in ghost_views.items():
         if scene in data["scenes"]:
             data["scenes"][scene]["ghosting"] = gv
+    from study.reporting.findings_text import agreement_missed
     for scene, agree in res.agreements.items():
         if scene in data["scenes"]:
             data["scenes"][scene]["agreement"] = agree
+            if agreement_missed(agree):
+                data.setdefault("missed", {})[scene] = agreement_missed(agree)
     report.add("report.html", lambda: html_report.page(out, data), html_report.inputs_of(data))

@@ -10,8 +10,8 @@ import numpy as np
 import backend
 from study.reporting import plots
 from study.reporting.tables import Table, fmt, fmt_u
-from study.reporting.thesis import (THESIS_COLUMNS, THESIS_GHOST_FRAMES, THESIS_GHOST_MSE, THESIS_STATIC_PSNR,
-                                    THESIS_STATIC_SSIM)
+from study.reporting.thesis import (THESIS_COLUMNS, THESIS_GHOST_FRAMES, THESIS_GHOST_MSE, THESIS_SHARPEN,
+                                    THESIS_STATIC_PSNR, THESIS_STATIC_SSIM)
 
 
 def rank(values: dict[str, float]) -> list[str]:
@@ -106,6 +106,36 @@ class Summaries:
                                           + ". The thesis computed SSIM with MATLAB's ssim on RGB volumes; "
                                           "ours in that form is compared with it.", widths=widths),
                     {"rows": [r[0] for r in rows]})
+
+    def sharpen_test(self, views: dict, variants: dict) -> None:
+        """The thesis's Table 5.1: each TAA with Xu's kernel, the normalised one and none (PSNR),
+        per thesis scene and protocol, under the thesis's own four figures (its scene not named)."""
+        from study.reporting.findings import KERNELS, OWN_KERNEL
+        cols = [(taa, k) for taa in OWN_KERNEL for k in KERNELS]
+        if not all(c in variants for c in cols):
+            return
+        names = {"xu": "Xu", "normalised": "normalised", "none": "none"}
+        t = dict(zip(THESIS_SHARPEN["rows"], THESIS_SHARPEN["psnr"]))
+        t_of = {"xu": "not normalised", "normalised": "normalised"}
+        rows = [["thesis (scene not named)", "1600x900, 16 frames"]
+                + [f"{t[f'{taa}, {t_of[k]}']:.2f}" if k in t_of else "–" for taa, k in cols] + ["–"]]
+        for vlabel, results in views.items():
+            for r in results:
+                if r.scene not in THESIS_STATIC_PSNR:
+                    continue
+                n = r.frames[-1]
+                vals = [r.per_frame.get(variants[c], {}).get(n, {}).get("psnr") for c in cols]
+                us = [r.uncertainty.get(variants[c], {}).get(n, {}).get("psnr") for c in cols]
+                u = max((x for x in us if x is not None), default=None)
+                rows.append([r.scene, vlabel] + [fmt("psnr", v, u) for v in vals] + [fmt_u(u)])
+        header = ["scene", "protocol"] + [f"{taa}, {names[k]}" for taa, k in cols] + ["± reference"]
+        self._table("sharpen_test", Table(
+            "The sharpen test (the thesis's Table 5.1): PSNR (dB) of each TAA with each output sharpen", header, rows,
+            "Xu's kernel [[0,-1,0],[-1,5,-1],[0,-1,0]] is Uncharted's own, the normalised one "
+            "[[0,-1/4,0],[-1/4,2,-1/4],[0,-1/4,0]] the improved TAA's; none shows the plain blend. The "
+            "sharpen applies to the displayed output only; the history is the unsharpened blend. "
+            "The thesis's row is its Table 5.1 (one scene, not named)."),
+            {"rows": [r[:2] for r in rows], "variants": sorted(variants.values())})
 
     def speed_error(self, statics) -> None:
         """Cost per output frame (samples shaded x raster time + resolve) against error."""

@@ -25,3 +25,5 @@ THESIS_STATIC_PSNR = {s: tuple(v) for s, v in _F["static_psnr"].items()}
 THESIS_STATIC_SSIM = {s: tuple(v) for s, v in _F["static_ssim"].items()}
 THESIS_GHOST_MSE = {s: tuple(v) for s, v in _F["ghosting_mse"].items() if isinstance(v, list)}
 THESIS_GHOST_FRAMES = int(_F["ghosting_mse"]["ghosting_frames"])
+THESIS_SHARPEN = {k: (list(v) if isinstance(v, list) else v) for k, v in _F["sharpen_test"].items()}
+THESIS_TIMINGS_MS = {k: tuple(v) for k, v in _F["timings_ms"].items()}
