@@ -122,7 +122,9 @@ def test_paper_builds_from_a_tiny_study_with_every_table_and_figure(tmp_path):
     shutil.copy(PAPER / "main.tex", paper / "main.tex")       # the repository's own paper
     got = paper_pdf.fill_generated(out, paper)
     tables = sorted(p.stem for p in (out / "tables").glob("*.tex"))
-    assert sorted(got["tables"]) == tables and got["tables"][:2] == ["headline", "reproduction"]
+    assert sorted(got["tables"]) == sorted(t for t in tables if t != "findings_summary")
+    assert got["tables"][:3] == ["findings", "headline", "reproduction"] and got["body"][0] == "findings"
+    assert (paper / "generated/summary.tex").read_text() == (out / "tables/findings_summary.tex").read_text()
     assert sorted(f for f in got["figures"] if f.startswith("comparison_")) == \
         ["comparison_tiny_moving.png", "comparison_tiny_still.png"]
     assert set(got["figures"]) >= {p.name for p in (out / "plots").glob("*.png")}
@@ -134,12 +136,17 @@ def test_paper_builds_from_a_tiny_study_with_every_table_and_figure(tmp_path):
     print(f"paper: {c['pages']} pages, {len(got['tables'])} tables, {len(got['figures'])} figures, "
           f"{c['overfull']} overfull boxes, built in {took:.1f} s: {pdf}")
     assert pdf.is_file() and pdf.read_bytes()[:5] == b"%PDF-"
-    assert set(c["labels"]) >= {f"tab:{t}" for t in tables} | {f"fig:{Path(f).stem}" for f in got["figures"]}
+    assert set(c["labels"]) >= {f"tab:{t}" for t in got["tables"]} | {f"fig:{Path(f).stem}" for f in got["figures"]}
     assert c["graphics"] == sorted(f"generated/figures/{f}" for f in got["figures"])
-    # the reproduction table (the second) wraps its text to the line instead of being shrunk
-    assert len(c["table_widths"]) == len(tables) and c["table_widths"][1] <= 1.0, c["table_widths"]
-    # every table and figure is a float on a page of its own ('\clearpage' between them), after the text
-    assert c["pages"] >= len(got["tables"]) + len(got["figures"])
+    # the findings (the body's table) and the reproduction table (the appendix's second) wrap their
+    # text to the line instead of being shrunk; the body is a few pages, the appendix after it
+    assert len(c["table_widths"]) == len(got["tables"]), c["table_widths"]
+    assert c["table_widths"][0] <= 1.0 and c["table_widths"][2] <= 1.0, c["table_widths"]
+    assert c["body_table_widths"] == c["table_widths"][:1]
+    assert 1 <= c["body_pages"] <= 12 and "sec:appendix" in c["labels"]
+    # every appendix table and figure is a float on a page of its own ('\clearpage' between them)
+    n_appendix = len(got["tables"]) + len(got["figures"]) - len(got["body"])
+    assert c["pages"] >= c["body_pages"] + n_appendix
     if shutil.which("pdfinfo"):
         info = subprocess.run(["pdfinfo", str(pdf)], capture_output=True, text=True, check=True).stdout
         assert re.search(rf"^Pages:\s+{c['pages']}$", info, re.M) and "(A4)" in info

@@ -75,7 +75,7 @@ def table(record: dict) -> Table:
                  "side: static differences ± the two figures' reference uncertainties in quadrature; ghosting means "
                  "± the 95 % bootstrap interval over frames widened by the reference's share. Every number is this "
                  "run's (tables/findings.json holds each case).",
-                 widths=[0.25, 0.14, 0.16, 0.1, 0.07, 0.22])
+                 widths=[0.23, 0.13, 0.15, 0.09, 0.06, 0.22])
 
 
 def markdown(record: dict) -> str:
