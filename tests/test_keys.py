@@ -146,5 +146,8 @@ def test_a_normalized_value_keys_exactly_as_the_value_itself():
     pre = dict(data, schedule=Normalized(steps))
     assert task_key("run", pre, ["ref-1"]) == task_key("run", data, ["ref-1"])
     assert task_key("run", [pre, pre]) == task_key("run", [data, data])
+    frames = {f: f // 2 for f in range(0, 256, 3)}            # a test's judged frames: frame -> scene time
+    assert task_key("metrics", {"frames": Normalized(frames), "maps": [1]}, ["run-1"]) == \
+        task_key("metrics", {"frames": frames, "maps": [1]}, ["run-1"])
     other = dict(data, schedule=Normalized(steps[:-1]))
     assert task_key("run", other, ["ref-1"]) != task_key("run", data, ["ref-1"])

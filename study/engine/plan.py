@@ -183,7 +183,9 @@ class Planner:
             test.maps_for[c.label] = mf
             test.keep[c.label] = {"all": None, "maps": mf, "shown": shown_frames(frames), "none": []}[keep]
             ts = sorted(set(test.frame_times[c.label].values()))
-            mkey = task_key("metrics", {"frames": test.frame_times[c.label], "maps": mf},
+            if ("frames", inp.sampling) not in steps:   # the judged frames depend on the sampling alone
+                steps[("frames", inp.sampling)] = Normalized(test.frame_times[c.label])
+            mkey = task_key("metrics", {"frames": steps[("frames", inp.sampling)], "maps": mf},
                             [key] + [ref_keys[t] for t in ts] + [disp_keys[t] for t in ts], code=CODE["metrics"])
             mfolder = self.store.root / "metrics" / scene.name / mkey
             test.metrics_keys[c.label], test.metrics_folders[c.label] = mkey, str(mfolder)

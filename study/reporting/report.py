@@ -259,13 +259,13 @@ class Report(Summaries):
                                                   "figures over", "worst"], rows, note), inputs)
 
     # -- findings ----------------------------------------------------------------------------
-    def findings(self, res, variants: dict) -> dict:
+    def findings(self, res, variants: dict, alt: dict | None = None) -> dict:
         """The thesis's claims adjudicated (study.reporting.findings): tables/findings.json, the
         claims table, the summary's LaTeX, and the sentences that open study.md."""
         from study.reporting import findings as F
         from study.reporting import findings_text as FT
         from study.reporting.encode import strict_json
-        rec = F.findings(res, self.roles, variants)
+        rec = F.findings(res, self.roles, variants, alt)
         inputs = {"findings": hashlib.sha256(strict_json(rec, sort_keys=True).encode()).hexdigest()}
         self._file("tables/findings.json", strict_json(rec, indent=1, sort_keys=True), inputs)
         self._file("tables/findings_summary.tex", FT.latex_summary(rec), inputs)
@@ -305,6 +305,7 @@ def write_study(out: Path, res, configs, summary: dict, start: float) -> None:
     import time
 
     from study.config.profile import thesis_roles
+    from study.reporting import ground_truth
     from study.reporting.findings import sharpen_variants
     from study.reporting import html_report
     report = Report(out, res.artefacts, thesis_roles(configs), res.display)
@@ -323,7 +324,10 @@ def write_study(out: Path, res, configs, summary: dict, start: float) -> None:
     report.reproduction(views, res.ghosts)
     variants = sharpen_variants(configs)
     report.sharpen_test(views, variants)
-    report.findings(res, variants)
+    gt_label = ground_truth.label_of(configs)
+    alt = ground_truth.figures(report, views, res.references, gt_label) if res.artefacts is not None else {}
+    report.ground_truth(views, alt, gt_label)
+    report.findings(res, variants, alt)
     converged = list(views.values())[-1] if views else []
     report.speed_error(converged)
     report.history_convergence(res.statics, res.thesis_history)

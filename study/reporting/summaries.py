@@ -137,6 +137,38 @@ class Summaries:
             "The thesis's row is its Table 5.1 (one scene, not named)."),
             {"rows": [r[:2] for r in rows], "variants": sorted(variants.values())})
 
+    def ground_truth(self, views: dict, alt: dict, label: str | None) -> None:
+        """The thesis's columns ranked against our path-traced reference and against the thesis's
+        ground truth (a 128-sample accumulation of our raster; study.reporting.ground_truth)."""
+        rows = []
+        for vlabel, r in [(v, r) for v, rs in views.items() for r in rs]:
+            per = alt.get(f"{r.scene}|{vlabel}")
+            if r.scene not in THESIS_STATIC_PSNR or not per:
+                continue
+            n = r.frames[-1]
+            thesis = dict(zip(THESIS_COLUMNS, THESIS_STATIC_PSNR[r.scene]))
+            pt = {c: r.per_frame[l][n]["psnr"] for c, l in self.roles.items() if l in r.per_frame}
+            acc = {c: per[l] for c, l in self.roles.items() if l in per}
+            shared = [c for c in THESIS_COLUMNS if c in pt and c in acc]
+            rt, rp, ra = ([c for c in rank(d) if c in shared] for d in (thesis, pt, acc))
+            shift = float(np.mean([acc[c] - pt[c] for c in shared if math.isfinite(acc[c] - pt[c])] or [math.nan]))
+            rows.append([r.scene, vlabel, " > ".join(rt), " > ".join(rp), " > ".join(ra),
+                         f"{spearman(rp, ra):.2f}", f"{spearman(rt, rp):.2f}", f"{spearman(rt, ra):.2f}",
+                         f"{shift:+.2f}", fmt("psnr", r.per_frame[label][n]["psnr"])])
+        if not rows:
+            return
+        self._table("ground_truth", Table(
+            "Ground truth: the thesis's columns ranked against our path-traced reference and against the thesis's "
+            "own kind of ground truth (PSNR)",
+            ["scene", "protocol", "thesis ranking", "ours, path-traced reference", "ours, 128-sample accumulation",
+             "ρ path-traced / accumulation", "ρ thesis / path-traced", "ρ thesis / accumulation",
+             "mean PSNR shift (dB)", f"{label} vs path-traced (dB)"], rows,
+            f"The accumulation is {label!r}: 128 Halton-jittered sub-frames of our raster, the thesis's ground truth; "
+            "every technique's 8-bit display image is judged against its display image under the same transform. "
+            "Mean PSNR shift: against the accumulation minus against the path-traced reference, over the columns.",
+            widths=[0.09, 0.09, 0.15, 0.15, 0.15, 0.07, 0.07, 0.07, 0.07, 0.07]),
+            {"rows": [r[:2] for r in rows], "alt": alt})
+
     def speed_error(self, statics) -> None:
         """Cost per output frame (samples shaded x raster time + resolve) against error."""
         rows = []
