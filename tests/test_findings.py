@@ -164,3 +164,21 @@ def test_every_technique_is_judged_against_the_thesis_s_ground_truth_from_its_sh
         want = 10 * math.log10(255 ** 2 / np.mean((a - b) ** 2))
         assert got[f"{scene}|thesis (16 frames, cold)"]["noaa"] == pytest.approx(want, abs=1e-9)
         assert set(got[f"{scene}|thesis (16 frames, cold)"]) == {"noaa"}
+
+
+def test_the_built_in_profiles_judge_against_the_thesis_s_ground_truth_without_refining_for_it():
+    """The profiles' ground-truth column is the one the reporting finds, it is exempt from setting the
+    references' precision (near the reference, its MSE would ask for the finest bound everywhere), and
+    the sharpen test's swapped kernels and the accumulation run in static tests only."""
+    from study.config.studyfile import profile
+    from study.reporting.ground_truth import label_of
+    for name in ("quick", "full"):
+        p = profile(name)
+        gt = label_of(p.techniques)
+        assert gt == "Accumulation 128" and p.precision.exempt == (gt,)
+        v = F.sharpen_variants(p.techniques)
+        assert len(v) == 6
+        ghost = [c.label for c in p.techniques
+                 if c.name not in p.ghosting_techniques_skip and c.label not in p.ghosting_techniques_skip]
+        assert gt not in ghost and v[("Uncharted", "normalised")] not in ghost and v[("Improved", "xu")] not in ghost
+        assert v[("Uncharted", "xu")] in ghost and v[("Improved", "none")] in ghost

@@ -35,6 +35,7 @@ such files (study/config/profiles/*.toml).
     relmse = 0.01                                    # relMSE HDR, a fraction of it
     start_bound_lsb = 8.0                            # each test's references probed at this per-pixel bound,
     finest_bound_lsb = 0.125                         #   then at what the figures ask for, down to this
+    exempt = []                                      # column labels whose figures set no precision
 
 Relative paths (scenes, technique files, out) are relative to the study file. A bad file exits 2
 with the file, the field and the value.
@@ -114,6 +115,7 @@ class PrecisionEntry(_Model):
     relmse: float = Field(D.PRECISION["relmse"], gt=0)
     start_bound_lsb: float = Field(D.PRECISION["start_bound_lsb"], gt=0, le=64)
     finest_bound_lsb: float = Field(D.PRECISION["finest_bound_lsb"], gt=0)
+    exempt: list[str] = Field(default_factory=list)
 
     @field_validator("finest_bound_lsb")
     @classmethod

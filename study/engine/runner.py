@@ -146,7 +146,8 @@ class Study:
                 now: dict = {}
                 for t in statics + ghosts + sweeps:        # a sweep shares its protocol's references
                     now.setdefault((t.scene, t.protocol.name), {}).update(
-                        {(t.protocol.name, *k): v for k, v in figures_of(self._result(t, results, {})).items()})
+                        {(t.protocol.name, *k): v for k, v in figures_of(self._result(t, results, {})).items()
+                         if k[0] not in self.precision.exempt})
                 finer, judged = decide(now, before, self.levels, self.precision, over, self.drifts)
                 for k in sorted(judged):
                     name, b = f"{k[0]} ({k[1]})", self.bound_of(*k)
