@@ -10,6 +10,7 @@ import pytest
 from click.testing import CliRunner
 
 from study.commands.cli import main
+from study.config.profile import get_profile
 from study.config.studyfile import load_study
 from study.engine.store import Store
 
@@ -19,7 +20,8 @@ def test_a_study_file_without_techniques_compares_the_default_set(tmp_path):
         f = tmp_path / "s.toml"
         f.write_text(text)
         labels = [c.label for c in load_study(f).techniques]
-        assert labels[:5] == ["No AA", "FXAA", "SMAA", "Uncharted", "Improved"] and len(labels) == 10, labels
+        assert labels == [c.label for c in get_profile("quick").techniques], labels
+        assert labels[:5] == ["No AA", "FXAA", "SMAA", "Uncharted", "Improved"] and len(labels) == 13, labels
 
 
 @pytest.mark.parametrize("args, words", [

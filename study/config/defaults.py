@@ -15,6 +15,8 @@ GHOSTING_WARMUP = 0
 REFERENCE = dict(_reference.DEFAULTS)          # se_bound_lsb, target_noise_db
 AGREEMENT_SAMPLES = 64                         # raster frames the agreement check averages
 AGREEMENT_TARGET_NOISE_DB = _reference.TARGET_NOISE_DB
+# what a scene's raster-against-reference check must reach (study.engine.agreement)
+AGREEMENT_TARGETS = {"agreement_psnr_db": 45.0, "interior_max_abs_err": 1e-4, "reference_noise_psnr_db": 55.0}
 SWEEP_SCENES = ("sphere_ghosting", "disocclusion")   # where the sparse-supersampling mu sweep runs
 GHOSTING_SKIP = ("accumulation",)              # N sub-frames per frame: too slow for sequences
 KEEP_FRAMES = "report"                         # a run keeps, once judged, the frames the report reads

@@ -31,7 +31,7 @@ from scenes.jitter import halton_offsets
 from study.engine.tasks import Context, _deterministic, _setup, display_of, load_scene
 from study.metrics.uncertainty import jackknife
 
-TARGETS = {"agreement_psnr_db": 45.0, "interior_max_abs_err": 1e-4, "reference_noise_psnr_db": 55.0}
+from study.config.defaults import AGREEMENT_TARGETS as TARGETS  # noqa: E402
 
 
 @dataclass

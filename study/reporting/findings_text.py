@@ -107,7 +107,7 @@ def agreement_missed(agree: dict | None) -> list[str]:
     """The agreement targets a scene's check missed, as 'name (figure against target)'."""
     if not agree:
         return []
-    from study.engine.agreement import TARGETS
+    from study.config.defaults import AGREEMENT_TARGETS as TARGETS
     met, out = agree.get("targets_met", {}), []
     if met.get("agreement_psnr_db") is False:
         out.append(f"agreement {agree['agreement_psnr_db']:.2f} dB < {TARGETS['agreement_psnr_db']:g} dB")
@@ -129,7 +129,7 @@ def agreement_line(agree: dict | None) -> str:
     """A scene's raster-against-reference check in one readable line."""
     if not agree:
         return ""
-    from study.engine.agreement import TARGETS
+    from study.config.defaults import AGREEMENT_TARGETS as TARGETS
     u = agree.get("agreement_u_db") or 0.0
     missed = agreement_missed(agree)
     return (f"Raster against reference: {agree['agreement_psnr_db']:.2f} dB"

@@ -103,7 +103,7 @@ def fill_generated(src: Path, paper_dir: Path, comparison_stem: str = "static") 
         write_text_atomic(gen / "tables" / f"{stem}.tex", _labelled_table((src / rel).read_text(), stem))
         (body if stem in BODY_TABLES else appendix).append(f"\\input{{generated/tables/{stem}}}")
     figures = []
-    from study.reporting.html_report import static_scenes
+    from study.reporting.report_folder import static_scenes
     for scene in static_scenes(listed):
         png = _comparison(src, listed, comparison_stem, scene)
         if png is not None:

@@ -212,7 +212,7 @@ class Summaries:
         if not rows:
             return
         self._table("history_convergence", Table(
-            f"TAA convergence: static test error against history length (checkpoints of one run)",
+            "TAA convergence: static test error against history length (checkpoints of one run)",
             ["scene", "technique", f"PSNR at {thesis_history} (thesis)", "PSNR converged", "gap (dB)",
              "SSIM converged", "FLIP converged", "frames to within 0.1 dB"], rows,
             "Frames to within 0.1 dB: the first checkpoint after which PSNR stays within 0.1 dB of its value at the "
