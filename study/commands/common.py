@@ -2,7 +2,6 @@
 options and helpers of the study commands."""
 from __future__ import annotations
 
-import json
 import os
 import sys
 import tempfile
