@@ -30,3 +30,8 @@ DEFAULT_TECHNIQUES_PROFILE = "quick"
 # to the finest. 8 LSB: a probe costs a few times the pilot's 8 samples per pixel.
 PRECISION = {"rule": "figures", "psnr_db": 0.01, "ssim": 1e-4, "flip": 1e-4, "relative": 0.0023, "relmse": 0.01,
              "start_bound_lsb": 8.0, "finest_bound_lsb": 0.125}
+# The perceptual video metric (study.metrics.video): ColorVideoVDP on cvvdp's 24-inch full-HD
+# office monitor (200 cd/m^2, 250 lux, 0.6 m), the display class the thesis's 1600x900 frames were
+# made for, played at 60 fps, the frame rate a game's TAA is tuned at. A technique-frame costs
+# ~0.2-0.4 s at 320x180 and ~6 s at 1600x900 on a core here: by default it judges the ghosting tests.
+VIDEO = {"metric": "cvvdp", "display": "standard_fhd", "fps": 60.0, "tests": ("ghosting",)}

@@ -8,6 +8,7 @@ from . import defaults as D
 from study.config.protocols import Protocol
 from .precision import Precision
 from .techniques import TechniqueConfig
+from .video import Video
 
 # Sparse supersampling's threshold mu against its cost (seed 002 chose 0.2 as the trade-off).
 SPARSE_SWEEP = tuple(TechniqueConfig(f"Sparse mu={mu}", "taa_sparse", (("mu", mu),))
@@ -51,6 +52,7 @@ class Profile:
     keep_frames: str = D.KEEP_FRAMES      # 'report': a run keeps, once judged, the frames the report reads; 'all'
     source: str = ""
     precision: Precision = Precision()    # how precise its references must be (study.engine.precision)
+    video: Video = Video()                # the perceptual video metric (study.metrics.video)
 
     @property
     def static_views(self) -> dict[str, int]:

@@ -36,6 +36,13 @@ such files (study/config/profiles/*.toml).
     start_bound_lsb = 8.0                            # each test's references probed at this per-pixel bound,
     finest_bound_lsb = 0.125                         #   then at what the figures ask for, down to this
     exempt = []                                      # column labels whose figures set no precision
+    [video]                                          # the perceptual video metric (study.metrics.video)
+    metric = "cvvdp"                                 # ColorVideoVDP, in JOD; or "none"
+    display = "standard_fhd"                         # a cvvdp display model
+    fps = 60.0                                       # the frame rate a ghosting test is played at
+    tests = ["ghosting"]                             # and/or "static" (the static views' image pairs)
+    scenes = []                                      # [] = every scene of those tests
+    techniques = []                                  # column labels or registry names; [] = every column
 
 Relative paths (scenes, technique files, out) are relative to the study file. A bad file exits 2
 with the file, the field and the value.
@@ -54,6 +61,7 @@ from .precision import Precision
 from .profile import Profile
 from .protocols import Protocol
 from .techniques import TechniqueConfig
+from .video import Video
 
 PROFILE_DIR = Path(__file__).resolve().parent / "profiles"
 
@@ -126,6 +134,23 @@ class PrecisionEntry(_Model):
         return v
 
 
+class VideoEntry(_Model):
+    metric: Literal["cvvdp", "none"] = D.VIDEO["metric"]
+    display: str = D.VIDEO["display"]
+    fps: float = Field(D.VIDEO["fps"], gt=0, le=1000)
+    tests: list[Literal["ghosting", "static"]] = Field(default_factory=lambda: list(D.VIDEO["tests"]))
+    scenes: list[str] = Field(default_factory=list)
+    techniques: list[str] = Field(default_factory=list)
+
+    @field_validator("display")
+    @classmethod
+    def _display(cls, v):
+        from study.metrics.video import display_models
+        if v not in display_models():
+            raise ValueError(f"unknown cvvdp display model; known: {', '.join(sorted(display_models()))}")
+        return v
+
+
 class ProtocolsEntry(_Model):
     static: StaticEntry = Field(default_factory=StaticEntry)
     ghosting: list[GhostingEntry] = Field(default_factory=lambda: [GhostingEntry(name="ghosting")])
@@ -146,6 +171,7 @@ class StudyModel(_Model):
     reference: dict[str, Any] = Field(default_factory=lambda: dict(D.REFERENCE))
     keep_frames: Literal["report", "all"] = D.KEEP_FRAMES
     precision: PrecisionEntry = Field(default_factory=PrecisionEntry)
+    video: VideoEntry = Field(default_factory=VideoEntry)
 
     @field_validator("resolution")
     @classmethod
@@ -198,6 +224,9 @@ def load_study(path: str | Path) -> Profile:
     labels = [c.label for c in configs]
     if len(set(labels)) != len(labels):
         fail("techniques", labels, "labels must be unique")
+    for t in m.video.techniques:
+        if not any(t in (c.label, c.name) for c in configs):
+            fail("video.techniques", t, "names no column of the study (a label or a registry name)")
     st = m.protocols.static
     try:
         static = Protocol("static", "static", history=st.history, checkpoints=tuple(sorted(set(st.checkpoints))))
@@ -228,7 +257,7 @@ def load_study(path: str | Path) -> Profile:
                    sweep_scenes=tuple(m.sweep_scenes), agreement_samples=m.agreement_samples,
                    scenes=tuple(scenes), techniques=tuple(configs), out=out, agreement=m.agreement,
                    sweep=m.sweep, thesis_history=st.thesis_history, keep_frames=m.keep_frames, source=str(path),
-                   precision=Precision(**m.precision.model_dump()))
+                   precision=Precision(**m.precision.model_dump()), video=Video(**m.video.model_dump()))
 
 
 def profile(name: str) -> Profile:

@@ -5,6 +5,8 @@ A study is a list of tests (scene, protocol, techniques). For each the planner k
   run         (scene, protocol, the techniques that share its raster frames) -- study.engine.run_task
   metrics     (one technique's run; a test's are judged by one task) -- study.engine.judge
   agreement   (scene)                           -- study.engine.agreement
+  video       (one technique's run, ColorVideoVDP; a test's by one task, in the study's last round)
+                                                -- study.engine.video_task
 from the keys of their inputs (provenance.task_key), and leaves out every task whose artefact is
 already complete in the cache. Where the tasks run is study.engine.execute's business; the tables
 and figures made from their results are study.reporting's.
@@ -23,6 +25,7 @@ from study.engine import judge as J
 from study.engine import reference_task as R
 from study.engine import run_task as RT
 from study.engine import tasks as T
+from study.engine import video_task as V
 
 
 # The code each task kind's key names (with, for a run, the technique's class): provenance hashes
@@ -32,13 +35,14 @@ CODE = {
     "run": ("study.engine.drive", "study.engine.run_task"),
     "metrics": ("study.engine.judge", "study.metrics.suite", "display"),
     "agreement": ("study.engine.agreement",),
+    "video": ("study.engine.video_task", "study.metrics.video", "study.metrics.uncertainty", "display"),
 }
 
 
 @dataclass
 class Task:
     key: str
-    kind: str                     # reference | run | metrics | agreement
+    kind: str                     # reference | run | metrics | agreement | video
     fn: object
     args: tuple
     deps: tuple = ()
@@ -63,6 +67,7 @@ class Test:
     maps_for: dict = field(default_factory=dict)        # label -> frame ids whose maps are kept
     keep: dict = field(default_factory=dict)            # label -> frame ids kept once judged (None: all)
     ref_settings: dict = field(default_factory=dict)    # its references' settings
+    video_keys: dict = field(default_factory=dict)      # label -> key of its JOD record (study.metrics.video)
 
 
 @dataclass
@@ -103,15 +108,21 @@ def run_steps(schedule: list, inp) -> list:
 
 class Planner:
     def __init__(self, ctx: T.Context, ref_settings: dict, agreement_samples: int | None,
-                 ref_settings_of: dict | None = None, display_settings: dict | None = None):
+                 ref_settings_of: dict | None = None, display_settings: dict | None = None, video=None,
+                 video_final: bool = False):
         """`ref_settings_of`: (scene name, protocol name) -> the references' settings of that test
         where they differ from `ref_settings` (the precision its figures need; study.engine.precision).
         `display_settings`: the references every frame's display transform comes from
-        (study.engine.tasks.display_of), `ref_settings` if not given."""
+        (study.engine.tasks.display_of), `ref_settings` if not given. `video`: the video metric's
+        settings (study.config.video.Video); its tasks are planned only with `video_final` (a
+        study's last round), but in every round the runs it will read keep every judged frame."""
         from study.engine.store import Store
         self.ctx, self.ref_settings, self.agreement_samples = ctx, dict(ref_settings), agreement_samples
         self.ref_settings_of = dict(ref_settings_of or {})
         self.display_settings = dict(display_settings or ref_settings)
+        from study.config.video import Video
+        self.video = video if video is not None else Video(metric="none")
+        self.video_final = video_final
         self.store = Store(Path(ctx.cache_root))
         self.plan = Plan()
         self._run_task_of: dict = {}     # run key -> key of the run task that makes it
@@ -158,6 +169,8 @@ class Planner:
         ref_keys = {t: self.reference_key(scene, t, w, h, settings) for t in kept_t}
         disp_keys = {t: self.reference_key(scene, t, w, h, self.display_settings) for t in kept_t}
         missing, steps = [], {}
+        # the columns the video metric judges here (in any round: their runs keep every judged frame)
+        vlabels = {c.label for c in configs if self.video.judges(protocol.kind, scene.name, c)}
         for c in configs:
             tech = c.make()
             inp = tech.inputs
@@ -182,6 +195,8 @@ class Planner:
                 mf = [frames[-1]]
             test.maps_for[c.label] = mf
             test.keep[c.label] = {"all": None, "maps": mf, "shown": shown_frames(frames), "none": []}[keep]
+            if c.label in vlabels and protocol.kind == "ghosting":
+                test.keep[c.label] = None         # the video metric reads every judged frame
             ts = sorted(set(test.frame_times[c.label].values()))
             if ("frames", inp.sampling) not in steps:   # the judged frames depend on the sampling alone
                 steps[("frames", inp.sampling)] = Normalized(test.frame_times[c.label])
@@ -190,7 +205,8 @@ class Planner:
             mfolder = self.store.root / "metrics" / scene.name / mkey
             test.metrics_keys[c.label], test.metrics_folders[c.label] = mkey, str(mfolder)
             mrec = self.store.done(mfolder, mkey, verify_files=bool(mf))
-            if mrec is not None and self._run_intact(folder, key, verify=bool(mf)):
+            if mrec is not None and self._run_intact(folder, key, verify=bool(mf)) and (
+                    c.label not in vlabels or protocol.kind != "ghosting" or self.store.done(folder, key, whole=True)):
                 self.plan.cached[mkey] = {"kind": "metrics", "key": mkey, "data": mrec["data"], "computed": False}
                 continue
             missing.append(c)
@@ -235,8 +251,42 @@ class Planner:
                 self.plan.tasks[gkey] = Task(gkey, "metrics", J.metrics_task,
                                              (self.ctx, spec, w, h, items, settings, self.display_settings), deps)
                 self._metrics_task_of.update({it["key"]: gkey for it in items})
+        if self.video_final and vlabels:
+            made = {c.label: self._run_task_of.get(test.run_keys[c.label]) for c in configs}
+            self._add_video(spec, scene, test, [c for c in configs if c.label in vlabels], settings, made,
+                            ref_keys, disp_keys, self.video)
         self.plan.tests.append(test)
         return test
+
+    def _add_video(self, spec, scene, test, configs, settings, made, ref_keys, disp_keys, video) -> None:
+        """The JOD of each column the video metric judges, once this round's runs are made."""
+        from study.metrics.video import VERSION
+        items = []
+        for c in configs:
+            ft = test.frame_times[c.label]
+            frames = sorted(ft) if test.protocol.kind == "ghosting" else list(test.maps_for[c.label])
+            ts = sorted({ft[f] for f in frames})
+            vkey = task_key("video", {"frames": {f: ft[f] for f in frames}, "kind": test.protocol.kind,
+                                      "video": video.key_data(), "cvvdp": VERSION},
+                            [test.run_keys[c.label]] + [ref_keys[t] for t in ts] + [disp_keys[t] for t in ts],
+                            code=CODE["video"])
+            folder = self.store.root / "video" / scene.name / vkey
+            test.video_keys[c.label] = vkey
+            rec = self.store.done(folder, vkey, verify_files=True)
+            if rec is not None:
+                self.plan.cached[vkey] = {"kind": "video", "key": vkey, "data": rec["data"], "computed": False}
+                continue
+            items.append({"label": c.label, "run_folder": test.run_folders[c.label], "run_key": test.run_keys[c.label],
+                          "frame_times": ft, "frames": frames, "key": vkey, "folder": str(folder), "ts": ts})
+        if not items:
+            return
+        deps = tuple(sorted({made[it["label"]] for it in items} - {None})) + tuple(dict.fromkeys(
+            self._reference(spec, scene, t, test.width, test.height, s)
+            for it in items for t in it["ts"] for s in (settings, self.display_settings)))
+        gkey = task_key("video-of", sorted(it["key"] for it in items))
+        self.plan.tasks[gkey] = Task(gkey, "video", V.video_task, (
+            self.ctx, spec, test.width, test.height, items, settings, self.display_settings, video.key_data(),
+            test.protocol.kind), deps)
 
     def _run_intact(self, folder: Path, key: str, verify: bool) -> bool:
         """A run whose frames the report reads must be intact too (else it is re-made)."""

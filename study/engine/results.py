@@ -35,6 +35,11 @@ class TestResult:
     uncertainty: dict[str, dict[int, dict]] = field(default_factory=dict)
     temporal_u: dict[str, float] = field(default_factory=dict)
     reference_bound_lsb: float = 0.0           # the per-pixel bound its references were refined to
+    # ColorVideoVDP (study.metrics.video): label -> {'sequence' (a ghosting test) or a static view's
+    # frame id as a string -> JOD}, bias removed, and its uncertainty
+    jod: dict[str, dict] = field(default_factory=dict)
+    jod_u: dict[str, dict] = field(default_factory=dict)
+    video: dict = field(default_factory=dict)  # the video metric's settings: metric, display, fps
 
 
 @dataclass
@@ -88,11 +93,14 @@ def view(full: TestResult, label: str, n: int) -> TestResult:
     v = TestResult(full.scene, label, [n], {}, dict(full.ms), temporal=dict(full.temporal),
                    stats={}, reference_keys=full.reference_keys, costs=full.costs, width=full.width,
                    height=full.height, kind="static", temporal_u=dict(full.temporal_u),
-                   reference_bound_lsb=full.reference_bound_lsb)
+                   reference_bound_lsb=full.reference_bound_lsb, video=dict(full.video))
     for l, per in full.per_frame.items():
         f = n if n in per else max(per)
         v.per_frame[l] = {n: per[f]}
         v.uncertainty[l] = {n: full.uncertainty.get(l, {}).get(f, {})}
+        if str(f) in full.jod.get(l, {}):        # the view's image pair judged by ColorVideoVDP
+            v.per_frame[l] = {n: {**per[f], "jod": full.jod[l][str(f)]}}
+            v.uncertainty[l] = {n: {**v.uncertainty[l][n], "jod": full.jod_u[l][str(f)]}}
         v.artefacts[l] = {**full.artefacts[l], "frame": f}
         if l in full.stats and f in full.stats[l]:
             v.stats[l] = {n: full.stats[l][f]}

@@ -77,13 +77,14 @@ class Study:
 
     # -- the whole study ----------------------------------------------------------------------------
     def plan(self, specs: list[str], configs: list[TechniqueConfig], agreement: bool = True,
-             sweep: tuple = (), ghosting: bool = True):
-        """The study's tests and the tasks it must compute: (plan, scenes, statics, ghosts, sweeps)."""
+             sweep: tuple = (), ghosting: bool = True, final: bool = True):
+        """The study's tests and the tasks it must compute: (plan, scenes, statics, ghosts, sweeps).
+        `final`: the study's last round, whose references are final: the video metric's tasks too."""
         scenes = [(spec, load_scene(spec)) for spec in specs]
         protos = [self.profile.static, *self.profile.ghosting]
         planner = Planner(self.ctx, self.ref_settings, self.profile.agreement_samples if agreement else None,
                           {(scene.name, p.name): self.settings_for(scene.name, p.name) for _, scene in scenes for p in protos},
-                          self.display_settings)
+                          self.display_settings, video=self.profile.video, video_final=final)
         statics, ghosts, sweeps = [], [], []
         for spec, scene in scenes:
             w, h = self.resolution(scene)
@@ -119,7 +120,8 @@ class Study:
         with Session(self.executor, self.log) as session:     # one cluster for every round
             while True:
                 with code_snapshot():
-                    plan, scenes, statics, ghosts, sweeps = self.plan(specs, configs, agree, sweep, ghosting)
+                    plan, scenes, statics, ghosts, sweeps = self.plan(specs, configs, agree, sweep, ghosting,
+                                                                      final=settled or not figures)
                 if figures and memo is None:      # the probe's plan: did a study decide from it before?
                     memo = self._decisions(plan, agreement)
                     if memo["replayed"]:
@@ -137,9 +139,10 @@ class Study:
                     self.log(f"study: {len(plan.tasks)} tasks to compute ({', '.join(f'{k} {n}' for k, n in sorted(counts.items()))})"
                              f", {len(plan.cached)} complete; executor: {self.executor.describe()}")
                 results = session.execute(plan, self.progress)
-                for key in [k for k, v in results.items() if "records" in v]:   # a metrics task: its records by key
-                    for mkey, rec in results.pop(key)["records"].items():
-                        results[mkey] = {"kind": "metrics", "key": mkey, **rec}
+                for key in [k for k, v in results.items() if "records" in v]:   # a metrics or video task: by key
+                    task = results.pop(key)
+                    for mkey, rec in task["records"].items():
+                        results[mkey] = {"kind": task["kind"], "key": mkey, **rec}
                 rounds.append((counts, results))
                 if not figures or settled:
                     break
@@ -162,9 +165,10 @@ class Study:
                              f"{m} of {tech} ({label}, frame {f}) +-{u:.3g} > {tol:.3g}; "
                              + (nxt if k in finer else "the finest bound: reported"))
                 if not finer:
-                    if not agreement:
+                    if not agreement and not self.profile.video.on:
                         break
-                    agree = settled = True       # one more round: the agreements alone (the rest is cached)
+                    # one more round: the agreements and the video metric alone (the rest is cached)
+                    agree, settled = agreement, True
                 self.levels.update(finer)
         if memo is not None and not memo["replayed"]:
             memo["store"].save_record(memo["path"], memo["key"], P.to_record(self.levels, tried, over, self.drifts))
@@ -190,6 +194,7 @@ class Study:
         out.stats = {"runs_computed": sum(len([r for r in v["runs"].values() if r["computed"]])
                                           for v in results.values() if v["kind"] == "run"),
                      "metrics_computed": sum(1 for v in results.values() if v["kind"] == "metrics" and v["computed"]),
+                     "video_computed": sum(1 for v in results.values() if v["kind"] == "video" and v["computed"]),
                      "references_rendered": sum(1 for v in results.values() if v["kind"] == "reference" and v["rendered"]),
                      "tasks": counts}
         out.stats["runs_cached"] = max(0, sum(len(t.configs) for t in statics + ghosts + sweeps) - out.stats["runs_computed"])
@@ -269,6 +274,12 @@ class Study:
                                       "output_space": (rec or {}).get("output_space", "linear"),
                                       "technique": c.name, "overrides": list(c.overrides),
                                       "maps_for": test.maps_for[c.label]}
+        for label, vkey in test.video_keys.items():
+            if vkey in results:
+                res.jod[label] = {k: v for k, v in results[vkey]["data"]["jod"].items()}
+                res.jod_u[label] = dict(results[vkey]["data"]["jod_u"])
+                res.video = {k: results[vkey]["data"][k] for k in ("metric", "display", "fps")}
+                res.artefacts[label]["video_key"] = vkey
         res.frames = sorted(frames)
         if test.protocol.kind == "static":
             res.checkpoints = res.per_frame

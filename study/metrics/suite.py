@@ -25,7 +25,7 @@ from study.metrics import flip as F
 from study.metrics import ssim as S
 
 METRICS = ("mse", "rmsd", "psnr", "snr", "ssim", "ssim_volume", "flip_ldr", "flip_hdr", "relmse_hdr")
-HIGHER_IS_BETTER = {"psnr": True, "snr": True, "ssim": True, "ssim_volume": True}
+HIGHER_IS_BETTER = {"psnr": True, "snr": True, "ssim": True, "ssim_volume": True, "jod": True}
 IMPLS = ("drjit", "library")
 
 

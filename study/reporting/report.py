@@ -17,6 +17,7 @@ from study.reporting import plots
 from study.reporting.encode import display_8bit, exr_bytes, magma, png, slug
 from study.reporting.summaries import Summaries
 from study.metrics.uncertainty import pooled
+from study.metrics.video import VERSION as VIDEO_VERSION
 from study.reporting.tables import METRIC_LABELS, UNCERTAINTY_NOTE, Table, fmt, fmt_u, thesis_layout
 from study.reporting.thesis import THESIS_COLUMNS
 
@@ -115,11 +116,13 @@ class Report(Summaries):
         results = {l: {**res.per_frame[l][n], "ms": res.ms[l]} for l in res.per_frame}
         inputs = {"runs": {l: a["run_key"] for l, a in res.artefacts.items()},
                   "metrics": {l: a["metrics_key"] for l, a in res.artefacts.items()},
+                  "video": {l: a.get("video_key") for l, a in res.artefacts.items()},
                   "costs": {l: c.get("key") for l, c in res.costs.items()}}
         note = (f"{res.test}: {res.width}x{res.height}, 8-bit display images; ms / frame = raster of the samples "
                 f"shaded + resolve (study.engine.costs). " + self._floor_note(agree) + self._precision_note(res))
         us = {l: res.uncertainty.get(l, {}).get(n, {}) for l in res.per_frame}
-        table = thesis_layout(f"Static test, {res.test}: {res.scene}", results, STATIC_METRICS,
+        jod = ["jod"] if any("jod" in v for v in results.values()) else []     # where the study judges it
+        table = thesis_layout(f"Static test, {res.test}: {res.scene}", results, STATIC_METRICS + jod,
                               self.improved if self.improved in results else None, note, uncertainty=us)
         self._table(f"{stem}_{res.scene}", table, inputs)
         shown: list = []
@@ -182,10 +185,18 @@ class Report(Summaries):
         tu = max((u for u in (res.temporal_u.get(l) for l in labels) if u is not None), default=None)
         rows.append([METRIC_LABELS["temporal"], "sequence"] + [fmt("temporal", res.temporal[l], tu) for l in labels]
                     + [fmt_u(tu)])
+        jod = ""
+        if res.jod:          # the columns the video metric judges (study.config.video)
+            ju = max((u for l in labels for u in [res.jod_u.get(l, {}).get("sequence")] if u is not None), default=None)
+            rows.append([METRIC_LABELS["jod"], f"video, {res.video['fps']:g} fps"]
+                        + [fmt("jod", res.jod.get(l, {}).get("sequence"), ju) for l in labels] + [fmt_u(ju)])
+            jod = (f" JOD: ColorVideoVDP {VIDEO_VERSION} of the {len(res.frames)} frames as a video at {res.video['fps']:g} "
+                   f"fps on its '{res.video['display']}' display model (10 = no visible difference; higher is better).")
         rows.append([METRIC_LABELS["ms"], "median"] + [fmt("ms", res.ms[l]) for l in labels] + ["–"])
         note = (f"{res.test}: {len(res.frames)} frames at {res.width}x{res.height}, each against its own reference. "
-                + self._floor_note(agree) + self._precision_note(res))
+                + self._floor_note(agree) + self._precision_note(res) + jod)
         inputs = {"runs": {l: a["run_key"] for l, a in res.artefacts.items()},
+                  "video": {l: a.get("video_key") for l, a in res.artefacts.items()},
                   "references": list(res.reference_keys.values())}
         self._table(f"{stem}_{res.scene}", Table(f"Ghosting test, {res.test}: {res.scene}", header, rows, note), inputs)
         self._file(f"plots/{stem}_{res.scene}.png", lambda: plots.series(res), inputs)
@@ -235,9 +246,11 @@ class Report(Summaries):
              "reference_bound_lsb": r.reference_bound_lsb,
              "techniques": {l: {"frames": {str(f): {"figures": v, "uncertainty": r.uncertainty.get(l, {}).get(f, {})}
                                            for f, v in per.items()},
-                                "temporal": r.temporal.get(l), "temporal_u": r.temporal_u.get(l)}
+                                "temporal": r.temporal.get(l), "temporal_u": r.temporal_u.get(l),
+                                "jod": r.jod.get(l), "jod_u": r.jod_u.get(l)}
                             for l, per in r.per_frame.items()}} for p, r in tests]}
         inputs = {"metrics": sorted({a["metrics_key"] for _, r in tests for a in r.artefacts.values()}),
+                  "video": sorted({a.get("video_key") or "" for _, r in tests for a in r.artefacts.values()}),
                   "precision": res.precision}
         self._file("tables/figures.json", lambda: json.dumps(doc, indent=1, sort_keys=True, default=str), inputs)
         if not res.precision:

@@ -11,9 +11,9 @@ from study.metrics.uncertainty import decimals
 
 METRIC_LABELS = {"mse": "MSE", "rmsd": "RMSD", "psnr": "PSNR (dB)", "snr": "SNR (dB)", "ssim": "SSIM",
                  "flip_ldr": "FLIP LDR", "flip_hdr": "FLIP HDR", "relmse_hdr": "relMSE HDR", "ms": "ms / frame",
-                 "temporal": "temporal RMS"}
+                 "temporal": "temporal RMS", "jod": "JOD (ColorVideoVDP)"}
 DIGITS = {"mse": 3, "rmsd": 3, "psnr": 3, "snr": 3, "ssim": 4, "flip_ldr": 4, "flip_hdr": 4, "relmse_hdr": 5,
-          "ms": 2, "temporal": 3}
+          "ms": 2, "temporal": 3, "jod": 3}
 
 
 def fmt(metric: str, v, u: float | None = None) -> str:

@@ -1,0 +1,88 @@
+"""ColorVideoVDP (Mantiuk et al., SIGGRAPH 2024; the `cvvdp` package, pinned in pyproject.toml):
+a perceptual video metric calibrated on user studies, in JOD (just-objectionable differences; 10 =
+no visible difference, each unit down about 75 % of observers preferring the reference).
+
+Input is display-referred: the study's 8-bit sRGB display images (the same the image metrics
+judge, study.display), shown on the display model named by the study file. Our linear values are
+scene radiance without an absolute scale, so the metric's HDR mode (absolute cd/m^2) would need a
+luminance calibration that no scene has; the tone-mapped image is what a player sees.
+
+The base metric needs no downloaded weights (only cvvdp's ML variants fetch models): importing it
+sets HF_HUB_OFFLINE so that nothing can be fetched at run time.
+"""
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+VERSION = "0.5.7"          # pinned; part of every JOD figure's key (study.engine.plan)
+
+
+@lru_cache(maxsize=1)
+def display_models() -> dict:
+    """cvvdp's display models (name -> description), read from the package's data without
+    importing it (its import loads torch: ~10-20 s)."""
+    spec = importlib.util.find_spec("pycvvdp")
+    if spec is None or not spec.submodule_search_locations:
+        raise RuntimeError("the cvvdp package is not installed (scripts/setup.sh installs it)")
+    path = Path(list(spec.submodule_search_locations)[0]) / "vvdp_data" / "display_models.json"
+    return {k: v.get("name", k) for k, v in json.loads(path.read_text()).items()}
+
+
+def _as_frames(a, what: str) -> np.ndarray:
+    a = np.asarray(a)
+    if a.dtype != np.uint8:
+        raise ValueError(f"{what}: 8-bit display frames expected, got {a.dtype}")
+    if a.ndim == 3:
+        a = a[None]
+    if a.ndim != 4 or a.shape[-1] != 3:
+        raise ValueError(f"{what}: frames must be F x H x W x 3, got shape {a.shape}")
+    return np.ascontiguousarray(a)
+
+
+class ColorVideoVDP:
+    """One metric object per display model (cvvdp keeps its pyramids per image size)."""
+
+    def __init__(self, display: str = "standard_fhd", threads: int | None = None):
+        if display not in display_models():
+            raise ValueError(f"unknown cvvdp display model {display!r}; known: {', '.join(sorted(display_models()))}")
+        os.environ["HF_HUB_OFFLINE"] = "1"
+        import pycvvdp
+        import torch
+        if threads:
+            torch.set_num_threads(int(threads))
+        self.display, self._torch = display, torch
+        self._metric = {hm: pycvvdp.cvvdp(display_name=display, heatmap=hm, quiet=True, device=torch.device("cpu"))
+                        for hm in (None, "raw")}
+
+    def jod(self, test8, ref8, fps: float, heatmap: bool = False) -> tuple[float, np.ndarray | None]:
+        """JOD of `test8` against `ref8` (F x H x W x 3 uint8, or one H x W x 3 image), played at
+        `fps` (a single frame is judged as an image). With `heatmap`, also the per-pixel difference
+        map of the last frame (cvvdp's 'raw' map: 0 where nothing is visible,
+        rising with the predicted visibility; 1 - JOD/10 per pixel)."""
+        t, r = _as_frames(test8, "technique"), _as_frames(ref8, "reference")
+        if t.shape != r.shape:
+            raise ValueError(f"technique frames {t.shape} and reference frames {r.shape} differ in shape")
+        if t.shape[0] > 1 and not fps > 0:
+            raise ValueError(f"a sequence needs a frame rate > 0, got {fps!r}")
+        m = self._metric["raw" if heatmap else None]
+        with self._torch.no_grad():
+            if t.shape[0] == 1:
+                q, stats = m.predict(t[0], r[0], dim_order="HWC")
+            else:
+                q, stats = m.predict(t, r, dim_order="FHWC", frames_per_second=float(fps))
+        hmap = None
+        if heatmap:
+            hmap = np.asarray(stats["heatmap"][0, 0, -1].float().numpy(), np.float32)
+        return float(q), hmap
+
+
+@lru_cache(maxsize=4)
+def metric(display: str, threads: int | None = None) -> ColorVideoVDP:
+    """A process's metric for a display (its construction and torch's import are paid once)."""
+    return ColorVideoVDP(display, threads)
