@@ -83,6 +83,10 @@ def test_readme_ab_of_the_example_against_the_baseline(own):
     ('name = "x"\nsurprise = 1', "field surprise"),
     ('name = "x"\n[[protocols.ghosting]]\nname = "g"\nframes = 0', "field protocols.ghosting[0].frames"),
     ('name = = 1', "not valid TOML"),
+    ('name = "x"\n[video]\ndisplay = "crt_1985"', "field video.display: unknown cvvdp display model"),
+    ('name = "x"\n[video]\nfps = 0', "field video.fps"),
+    ('name = "x"\n[video]\ntests = ["sweep"]', "field video.tests[0]"),
+    ('name = "x"\n[video]\ntechniques = ["Nobody"]', "field video.techniques: names no column"),
 ])
 def test_bad_study_files_exit_2_naming_file_field_and_value(tmp_path, text, message):
     f = tmp_path / "bad.toml"

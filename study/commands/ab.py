@@ -4,8 +4,10 @@ Pairs are frames of the converged protocols: the static test's frame after its f
 every frame of the warm ghosting test, of every scene. For each metric we report the mean paired
 difference B - A with a 95 % bootstrap confidence interval (2000 resamples, fixed seed, so the same
 runs print the same figures), per scene and overall, and the difference in cost per frame. With a
-single pair there is no interval: it is reported as None (null in JSON) with n = 1. `worse_by` says
-how much worse B is than A.
+single pair there is no bootstrap interval: it is reported as None (null in JSON) with n = 1, except
+for the JOD of ColorVideoVDP (study.metrics.video; one figure per ghosting video), whose single pair
+carries the interval of the two figures' reference uncertainties (each about 2 sd), added in
+quadrature ("interval": "reference"). `worse_by` says how much worse B is than A.
 """
 from __future__ import annotations
 
@@ -19,7 +21,7 @@ from study.engine.runner import Study
 from study.metrics.suite import HIGHER_IS_BETTER
 from study.reporting.intervals import bootstrap_ci
 
-AB_METRICS = ("psnr", "ssim", "mse", "flip_ldr")
+AB_METRICS = ("psnr", "ssim", "mse", "flip_ldr", "jod")
 
 
 @dataclass
@@ -45,43 +47,64 @@ class ABResult:
     def recomputed_line(self) -> str:
         r = self.recomputed
         return (f"recomputed: {r.get('runs_computed', 0)} runs ({r.get('runs_cached', 0)} cached), "
-                f"{r.get('metrics_computed', 0)} metric sets, {r.get('references_rendered', 0)} references rendered")
+                f"{r.get('metrics_computed', 0)} metric sets, {r.get('video_computed', 0)} video metric sets, "
+                f"{r.get('references_rendered', 0)} references rendered")
 
 
-def _summary(diffs: list[float]) -> dict:
-    arr = np.array([d for d in diffs if math.isfinite(d)], np.float64)
+def _summary(diffs: list[float], us: list | None = None) -> dict:
+    """`us`: each pair's reference uncertainty, for the interval of a single pair."""
+    keep = [i for i, d in enumerate(diffs) if math.isfinite(d)]
+    arr = np.array([diffs[i] for i in keep], np.float64)
     if len(arr) == 0:
         return {"mean": None, "ci": None, "n": 0}
+    if len(arr) == 1 and us and us[keep[0]] is not None:
+        u = us[keep[0]]
+        return {"mean": float(arr[0]), "ci": [float(arr[0] - u), float(arr[0] + u)], "n": 1, "interval": "reference"}
     ci = bootstrap_ci(arr)
-    return {"mean": float(arr.mean()), "ci": list(ci) if ci else None, "n": int(len(arr))}
+    return {"mean": float(arr.mean()), "ci": list(ci) if ci else None, "n": int(len(arr)),
+            "interval": "bootstrap" if ci else None}
 
 
 def compare(a: TechniqueConfig, b: TechniqueConfig, scenes, profile: str = "quick", progress: bool = True,
-            study: Study | None = None) -> ABResult:
-    """`scenes`: scene specs (built-in names or scene files)."""
+            study: Study | None = None, video: bool = True) -> ABResult:
+    """`scenes`: scene specs (built-in names or scene files). `video`: judge A and B by the video
+    metric wherever the study's [video] judges a scene (False: not at all, the quicker loop)."""
     import dataclasses
     if a.label == b.label:
         b = TechniqueConfig(b.label + " (B)", b.name, b.overrides)
     study = study or Study(profile, progress=progress)
     warm = tuple(p for p in study.profile.ghosting if p.warmup) or study.profile.ghosting
-    study.profile = dataclasses.replace(study.profile, ghosting=warm)
+    vid = dataclasses.replace(study.profile.video, techniques=()) if video else \
+        dataclasses.replace(study.profile.video, metric="none")
+    study.profile = dataclasses.replace(study.profile, ghosting=warm, video=vid)
     out = study.run(list(scenes), [a, b], agreement=False)
     res = ABResult(a.label, b.label, recomputed={k: v for k, v in out.stats.items() if k != "tasks"})
     overall = {m: [] for m in AB_METRICS}
+    overall_u = {m: [] for m in AB_METRICS}
     per_scene: dict = {}
+    per_u: dict = {}
     tests = list(out.views.values())[-1] + [g for gs in out.ghosts.values() for g in gs]
+
+    def pair(per, pu, m, va, vb, ua=None, ub=None):
+        if va is not None and vb is not None and math.isfinite(va) and math.isfinite(vb):
+            per[m].append(vb - va)
+            pu[m].append(math.hypot(ua, ub) if ua is not None and ub is not None else None)
     for r in tests:
         per = per_scene.setdefault(r.scene, {m: [] for m in AB_METRICS})
+        pu = per_u.setdefault(r.scene, {m: [] for m in AB_METRICS})
         for t in r.frames:
             for m in AB_METRICS:
-                va, vb = r.per_frame[a.label][t][m], r.per_frame[b.label][t][m]
-                if va is not None and vb is not None and math.isfinite(va) and math.isfinite(vb):
-                    per[m].append(vb - va)
+                ua, ub = (r.uncertainty.get(x, {}).get(t, {}).get(m) for x in (a.label, b.label))
+                pair(per, pu, m, r.per_frame[a.label][t].get(m), r.per_frame[b.label][t].get(m), ua, ub)
+        if r.kind == "ghosting" and a.label in r.jod and b.label in r.jod:    # one JOD per video
+            pair(per, pu, "jod", r.jod[a.label].get("sequence"), r.jod[b.label].get("sequence"),
+                 r.jod_u[a.label].get("sequence"), r.jod_u[b.label].get("sequence"))
     for scene, per in per_scene.items():
-        res.per_scene[scene] = {m: _summary(v) for m, v in per.items()}
+        res.per_scene[scene] = {m: _summary(v, per_u[scene][m]) for m, v in per.items()}
         for m in AB_METRICS:
             overall[m] += per[m]
-    res.overall = {m: _summary(v) for m, v in overall.items()}
+            overall_u[m] += per_u[scene][m]
+    res.overall = {m: _summary(v, overall_u[m]) for m, v in overall.items()}
     statics = list(out.views.values())[-1]
     ma = float(np.median([r.ms[a.label] for r in statics]))
     mb = float(np.median([r.ms[b.label] for r in statics]))

@@ -191,7 +191,8 @@ def run_study(profile, names, configs, out_dir, no_agreement, executor, sweep=Tr
     if (out / "tables" / "reproduction.md").exists():
         click.echo((out / "tables" / "reproduction.md").read_text())
     click.echo(f"runs computed {res.stats['runs_computed']}, cached {res.stats['runs_cached']}; "
-               f"metrics computed {res.stats['metrics_computed']}; references rendered "
+               f"metrics computed {res.stats['metrics_computed']}, video {res.stats.get('video_computed', 0)}; "
+               f"references rendered "
                f"{res.stats['references_rendered']}; {_time.perf_counter() - start:.1f} s; artefacts in {out}/, "
                f"report {out / 'report.html'}")
     return out

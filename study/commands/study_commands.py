@@ -173,10 +173,13 @@ def bench(width, height, repeats, tech_names, as_json):
               help="A study file for the scenes, resolution, protocols and reference settings.")
 @click.option("--max-worse", "gates", multiple=True,
               help="METRIC=THRESHOLD: exit 1 if B is worse than A by more than THRESHOLD on average "
-                   "(e.g. psnr=0.25, ssim=0.002, mse=1.0, flip_ldr=0.002). Repeatable.")
+                   "(e.g. psnr=0.25, ssim=0.002, mse=1.0, flip_ldr=0.002, jod=0.1). Repeatable.")
+@click.option("--video/--no-video", default=True, show_default=True,
+              help="Judge A and B by the video metric (ColorVideoVDP, JOD) where the study's [video] judges a "
+                   "scene; --no-video skips it (~0.3 s a technique-frame at 320x180, plus ~10 s to load torch).")
 @click.option("--json", "as_json", is_flag=True, help="Print one strict JSON object (nothing else on stdout).")
 @_execution_options
-def ab(a, b, scene_list, profile, study_file, gates, as_json, workers, threads, scheduler):
+def ab(a, b, scene_list, profile, study_file, gates, video, as_json, workers, threads, scheduler):
     """Compare technique configuration B against A: paired differences with bootstrap intervals.
 
     A and B are 'name' or 'Label=name:field=value,...', e.g.
@@ -201,7 +204,7 @@ def ab(a, b, scene_list, profile, study_file, gates, as_json, workers, threads, 
         if not math.isfinite(limits[m]) or limits[m] < 0:
             _fail(f"--max-worse {g!r}: the threshold must be a finite number >= 0 (how much worse B may be)")
     try:
-        res = compare(ca, cb, scene_list, prof, progress=not as_json,
+        res = compare(ca, cb, scene_list, prof, progress=not as_json, video=video,
                       study=Study(prof, progress=not as_json, executor=_executor(workers, threads, scheduler)))
     except TaskError as exc:
         _fail(str(exc))
@@ -215,6 +218,10 @@ def ab(a, b, scene_list, profile, study_file, gates, as_json, workers, threads, 
             cells = []
             for m, v in per.items():
                 ci = f"[{v['ci'][0]:+.3g}, {v['ci'][1]:+.3g}]" if v["ci"] else "[no interval: one pair]"
+                if v.get("interval") == "reference":
+                    ci = ci[:-1] + ", reference]"
+                if m == "jod" and v["n"] == 0:
+                    continue
                 mean = "–" if v["mean"] is None else f"{v['mean']:+.4g}"
                 cells.append(f"{m} {mean} {ci} n={v['n']}")
             click.echo(f"  {scene:18s} " + "; ".join(cells))

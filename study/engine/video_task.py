@@ -85,8 +85,9 @@ def _judge(store, ctx, scene, w, h, items, ref_settings, display_settings, video
                 if hv == "":
                     maps[f"maps_{fs[-1]:04d}.exr"] = {"cvvdp": hmap}
             c, u = U.jackknife(*({"jod": q[hv]} for hv in HALVES))
-            figures[name] = (c["jod"], u["jod"])
-        data = {"jod": {k: v for k, (v, _) in figures.items()}, "jod_u": {k: u for k, (_, u) in figures.items()},
-                **video}
+            figures[name] = (c["jod"], u["jod"], q)
+        data = {"jod": {k: v for k, (v, _, _) in figures.items()}, "jod_u": {k: u for k, (_, u, _) in figures.items()},
+                # as judged against the reference ("") and each half, before the bias is removed
+                "jod_judged": {k: q for k, (_, _, q) in figures.items()}, **video}
         rec = store.save_folder(Path(it["folder"]), it["key"], maps, {"data": data})
         yield it, rec["data"]
