@@ -175,9 +175,14 @@ def test_each_jod_is_the_jackknife_of_the_reference_and_its_halves_recomputed(st
     assert vdp.jod(np.stack(x8), np.stack(r8), 30)[0] == pytest.approx(q[""], abs=1e-3)
 
 
-def test_the_heatmap_is_kept_like_the_flip_maps(study):
+def test_the_heatmap_is_kept_like_the_flip_maps_and_shown(study):
     from references.exr import read_exr
     root, _ = study
+    out = root / "out"
+    assert (out / "plots" / "ghosting_cvvdp_tiny_moving.png").stat().st_size > 1000
+    assert {p.name for p in (out / "maps").glob("*_cvvdp.png")} >= {"ghosting_tiny_moving_no_aa_cvvdp.png",
+                                                                      "ghosting_tiny_moving_uncharted_cvvdp.png"}
+    assert "plots/ghosting_cvvdp_tiny_moving.png" in (out / "report.html").read_text()
     maps = sorted((root / "cache" / "video").rglob("maps_*.exr"))
     assert maps
     _, ch = read_exr(maps[0])

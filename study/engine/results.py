@@ -87,6 +87,17 @@ class Artefacts:
         return self.store.read_image(folder, f"maps_{f:04d}.exr", rec)
 
 
+    def video_map(self, a: dict, f: int):
+        """ColorVideoVDP's difference map of frame f (the last of a video, or a static view's) of
+        the video record of `a`, or None when that frame has none."""
+        folder = Path(a["video_folder"])
+        rec = self.store.done(folder, a["video_key"])
+        if rec is None:
+            raise RuntimeError(f"video metrics {folder} are not complete")
+        name = f"maps_{f:04d}.exr"
+        return self.store.read_image(folder, name, rec)["cvvdp"] if name in rec["files"] else None
+
+
 def view(full: TestResult, label: str, n: int) -> TestResult:
     """The static test as one protocol reads it: history length n (the checkpoint n for techniques
     with history, the single judged frame for those without)."""

@@ -280,6 +280,7 @@ class Study:
                 res.jod_u[label] = dict(results[vkey]["data"]["jod_u"])
                 res.video = {k: results[vkey]["data"][k] for k in ("metric", "display", "fps")}
                 res.artefacts[label]["video_key"] = vkey
+                res.artefacts[label]["video_folder"] = str(self.cache.root / "video" / test.scene / vkey)
         res.frames = sorted(frames)
         if test.protocol.kind == "static":
             res.checkpoints = res.per_frame

@@ -97,3 +97,23 @@ def speed(statics) -> bytes:
     ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
     fig.tight_layout()
     return fig_bytes(fig)
+
+
+def vdp_maps(res, maps: dict) -> bytes:
+    """ColorVideoVDP's difference map of each judged column's last frame (maps: label -> map),
+    with its JOD: where a viewer would see the ghost or the flicker."""
+    plt = _pyplot()
+    labels = list(maps)
+    cols = min(4, len(labels))
+    rows = (len(labels) + cols - 1) // cols
+    h, w = next(iter(maps.values())).shape
+    fig, axes = plt.subplots(rows, cols, figsize=(2.6 * cols, 2.6 * cols * h / w * rows / cols + 0.5 * rows),
+                             squeeze=False)
+    for ax in axes.flat:
+        ax.axis("off")
+    for ax, l in zip(axes.flat, labels):
+        ax.imshow(np.clip(maps[l], 0, 1), cmap="magma", vmin=0, vmax=1, interpolation="nearest")
+        ax.set_title(f"{l}: {res.jod[l]['sequence']:.2f} JOD", fontsize=7)
+    fig.suptitle(f"ColorVideoVDP difference, last frame: {res.scene} ({res.test})", fontsize=8)
+    fig.tight_layout()
+    return fig_bytes(fig)

@@ -200,6 +200,17 @@ class Report(Summaries):
                   "references": list(res.reference_keys.values())}
         self._table(f"{stem}_{res.scene}", Table(f"Ghosting test, {res.test}: {res.scene}", header, rows, note), inputs)
         self._file(f"plots/{stem}_{res.scene}.png", lambda: plots.series(res), inputs)
+        if res.jod:        # ColorVideoVDP's map of the last frame, as a FLIP map and beside the others
+            got: dict = {}
+
+            def vmaps():
+                if not got:
+                    got.update({l: self.artefacts.video_map(res.artefacts[l], max(res.per_frame[l])) for l in res.jod})
+                return got
+            for l in res.jod:
+                self._file(f"maps/{stem}_{res.scene}_{slug(l)}_cvvdp.png", lambda l=l: png(magma(vmaps()[l])),
+                           {"video": res.artefacts[l]["video_key"]})
+            self._file(f"plots/{stem}_cvvdp_{res.scene}.png", lambda: plots.vdp_maps(res, vmaps()), inputs)
 
     def ghosting_frames(self, res, reference, max_frames: int = 24) -> dict:
         """Display images of a ghosting sequence for the HTML report's frame slider (at most
