@@ -99,7 +99,9 @@ def test_runs_keep_only_the_frames_the_report_reads_and_are_remade_when_judged_a
     scene = tmp_path / "long.toml"
     scene.write_text(moving_scene(frames=30, size=(24, 16)))
     path = tmp_path / "s.toml"
-    path.write_text(STUDY.format(scenes=json.dumps([str(scene)])).replace("frames = 4", "frames = 30"))
+    # no video metric: it keeps every judged frame of the runs it reads (study.engine.plan)
+    path.write_text(STUDY.format(scenes=json.dumps([str(scene)])).replace("frames = 4", "frames = 30")
+                    + '\n[video]\nmetric = "none"\n')
     configs = [TechniqueConfig.parse(s) for s in ("taa_baseline", "noaa")]
 
     def run():

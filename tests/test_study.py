@@ -85,7 +85,7 @@ def test_ab_reports_paired_differences_and_gates(env):
                                          "--max-worse", "psnr=0.0"], catch_exceptions=False)
     assert r.exit_code == 0 and json.loads(r.stdout)["failed"] == {}
     assert json.loads(r.stdout)["recomputed"] == {"runs_computed": 0, "metrics_computed": 0, "references_rendered": 0,
-                                                  "runs_cached": 4}
+                                                  "video_computed": 0, "runs_cached": 4}
     # one technique changed: only its runs (A's are cached); its figures may ask for finer
     # references (the figures' precision rule), and the line says how many were rendered
     r = CliRunner().invoke(main, ["ab", "--scenes", str(env / "tiny.toml"), "taa_baseline:sharpen=xu",

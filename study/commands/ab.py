@@ -100,11 +100,11 @@ def compare(a: TechniqueConfig, b: TechniqueConfig, scenes, profile: str = "quic
             pair(per, pu, "jod", r.jod[a.label].get("sequence"), r.jod[b.label].get("sequence"),
                  r.jod_u[a.label].get("sequence"), r.jod_u[b.label].get("sequence"))
     for scene, per in per_scene.items():
-        res.per_scene[scene] = {m: _summary(v, per_u[scene][m]) for m, v in per.items()}
+        res.per_scene[scene] = {m: _summary(v, per_u[scene][m] if m == "jod" else None) for m, v in per.items()}
         for m in AB_METRICS:
             overall[m] += per[m]
             overall_u[m] += per_u[scene][m]
-    res.overall = {m: _summary(v, overall_u[m]) for m, v in overall.items()}
+    res.overall = {m: _summary(v, overall_u[m] if m == "jod" else None) for m, v in overall.items()}
     statics = list(out.views.values())[-1]
     ma = float(np.median([r.ms[a.label] for r in statics]))
     mb = float(np.median([r.ms[b.label] for r in statics]))

@@ -145,7 +145,7 @@ class VideoEntry(_Model):
     @field_validator("display")
     @classmethod
     def _display(cls, v):
-        from study.metrics.video import display_models
+        from .video import display_models
         if v not in display_models():
             raise ValueError(f"unknown cvvdp display model; known: {', '.join(sorted(display_models()))}")
         return v

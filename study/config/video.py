@@ -2,9 +2,24 @@
 study.engine.video_task runs it). Their defaults: study.config.defaults.VIDEO."""
 from __future__ import annotations
 
+import importlib.util
+import json
 from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
 
 from . import defaults as D
+
+
+@lru_cache(maxsize=1)
+def display_models() -> dict:
+    """cvvdp's display models (name -> description), read from the package's data without
+    importing it (its import loads torch: 10-25 s)."""
+    spec = importlib.util.find_spec("pycvvdp")
+    if spec is None or not spec.submodule_search_locations:
+        raise RuntimeError("the cvvdp package is not installed (scripts/setup.sh installs it)")
+    path = Path(list(spec.submodule_search_locations)[0]) / "vvdp_data" / "display_models.json"
+    return {k: v.get("name", k) for k, v in json.loads(path.read_text()).items()}
 
 
 @dataclass(frozen=True)

@@ -12,26 +12,12 @@ sets HF_HUB_OFFLINE so that nothing can be fetched at run time.
 """
 from __future__ import annotations
 
-import importlib.util
-import json
 import os
 from functools import lru_cache
-from pathlib import Path
 
 import numpy as np
 
 VERSION = "0.5.7"          # pinned; part of every JOD figure's key (study.engine.plan)
-
-
-@lru_cache(maxsize=1)
-def display_models() -> dict:
-    """cvvdp's display models (name -> description), read from the package's data without
-    importing it (its import loads torch: ~10-20 s)."""
-    spec = importlib.util.find_spec("pycvvdp")
-    if spec is None or not spec.submodule_search_locations:
-        raise RuntimeError("the cvvdp package is not installed (scripts/setup.sh installs it)")
-    path = Path(list(spec.submodule_search_locations)[0]) / "vvdp_data" / "display_models.json"
-    return {k: v.get("name", k) for k, v in json.loads(path.read_text()).items()}
 
 
 def _as_frames(a, what: str) -> np.ndarray:
@@ -49,16 +35,17 @@ class ColorVideoVDP:
     """One metric object per display model (cvvdp keeps its pyramids per image size)."""
 
     def __init__(self, display: str = "standard_fhd", threads: int | None = None):
-        if display not in display_models():
-            raise ValueError(f"unknown cvvdp display model {display!r}; known: {', '.join(sorted(display_models()))}")
         os.environ["HF_HUB_OFFLINE"] = "1"
         import pycvvdp
         import torch
         if threads:
             torch.set_num_threads(int(threads))
         self.display, self._torch = display, torch
-        self._metric = {hm: pycvvdp.cvvdp(display_name=display, heatmap=hm, quiet=True, device=torch.device("cpu"))
-                        for hm in (None, "raw")}
+        try:
+            self._metric = {hm: pycvvdp.cvvdp(display_name=display, heatmap=hm, quiet=True, device=torch.device("cpu"))
+                            for hm in (None, "raw")}
+        except Exception as exc:      # cvvdp raises its own error types for an unknown display model
+            raise ValueError(f"cvvdp display model {display!r}: {exc}") from None
 
     def jod(self, test8, ref8, fps: float, heatmap: bool = False) -> tuple[float, np.ndarray | None]:
         """JOD of `test8` against `ref8` (F x H x W x 3 uint8, or one H x W x 3 image), played at
