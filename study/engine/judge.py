@@ -43,21 +43,27 @@ def metrics_task(ctx, scene_spec: str, w: int, h: int, items: list, ref_settings
     None for all), key, folder}. Returns the records by metrics key."""
     store = _setup(ctx)
     scene = load_scene(scene_spec)
-    records = {}
     with contextlib.ExitStack() as locks:
-        for key in sorted(it["key"] for it in items):     # one order everywhere: no deadlock
-            locks.enter_context(store.lock(key))
-        todo = []
-        for it in items:
-            rec = store.done(Path(it["folder"]), it["key"])
-            if rec is not None:
-                records[it["key"]] = {"data": rec["data"], "computed": False}
-            else:
-                todo.append(it)
+        records, todo = locked_records(store, items, locks)
         if todo:
             for it, data in _judge(store, ctx, scene, w, h, todo, ref_settings, display_settings):
                 records[it["key"]] = {"data": data, "computed": True}
     return {"kind": "metrics", "records": records}
+
+
+def locked_records(store, items: list, locks) -> tuple[dict, list]:
+    """Lock every item's key (in one order everywhere: no deadlock) on the ExitStack `locks`;
+    returns (the records already complete, by key; the items still to compute)."""
+    for key in sorted(it["key"] for it in items):
+        locks.enter_context(store.lock(key))
+    records, todo = {}, []
+    for it in items:
+        rec = store.done(Path(it["folder"]), it["key"])
+        if rec is not None:
+            records[it["key"]] = {"data": rec["data"], "computed": False}
+        else:
+            todo.append(it)
+    return records, todo
 
 
 def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict, display_settings: dict):

@@ -12,7 +12,7 @@ from __future__ import annotations
 import contextlib
 from pathlib import Path
 
-from study.engine.judge import HALVES, judged_references
+from study.engine.judge import HALVES, judged_references, locked_records
 from study.engine.tasks import TaskError, _deterministic, _setup, display_of, load_scene
 from study.metrics import uncertainty as U
 
@@ -25,17 +25,8 @@ def video_task(ctx, scene_spec: str, w: int, h: int, items: list, ref_settings: 
     `video`: study.config.video.Video.key_data(). Returns the records by key."""
     store = _setup(ctx)
     scene = load_scene(scene_spec)
-    records = {}
     with contextlib.ExitStack() as locks:
-        for key in sorted(it["key"] for it in items):
-            locks.enter_context(store.lock(key))
-        todo = []
-        for it in items:
-            rec = store.done(Path(it["folder"]), it["key"])
-            if rec is not None:
-                records[it["key"]] = {"data": rec["data"], "computed": False}
-            else:
-                todo.append(it)
+        records, todo = locked_records(store, items, locks)
         for it, data in _judge(store, ctx, scene, w, h, todo, ref_settings, display_settings, video, kind):
             records[it["key"]] = {"data": data, "computed": True}
     return {"kind": "video", "records": records}
