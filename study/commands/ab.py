@@ -94,7 +94,9 @@ def compare(a: TechniqueConfig, b: TechniqueConfig, scenes, profile: str = "quic
         pu = per_u.setdefault(r.scene, {m: [] for m in AB_METRICS})
         for t in r.frames:
             for m in AB_METRICS:
-                ua, ub = (r.uncertainty.get(x, {}).get(t, {}).get(m) for x in (a.label, b.label))
+                # only the JOD's single pair takes its interval from the reference uncertainty
+                ua, ub = ((r.uncertainty.get(x, {}).get(t, {}).get(m) for x in (a.label, b.label)) if m == "jod"
+                          else (None, None))
                 pair(per, pu, m, r.per_frame[a.label][t].get(m), r.per_frame[b.label][t].get(m), ua, ub)
         if r.kind == "ghosting" and a.label in r.jod and b.label in r.jod:    # one JOD per video
             pair(per, pu, "jod", r.jod[a.label].get("sequence"), r.jod[b.label].get("sequence"),

@@ -169,8 +169,10 @@ class Planner:
         ref_keys = {t: self.reference_key(scene, t, w, h, settings) for t in kept_t}
         disp_keys = {t: self.reference_key(scene, t, w, h, self.display_settings) for t in kept_t}
         missing, steps = [], {}
-        # the columns the video metric judges here (in any round: their runs keep every judged frame)
+        # the columns the video metric judges here; in a ghosting test (in any round) their runs
+        # keep every judged frame, the video's
         vlabels = {c.label for c in configs if self.video.judges(protocol.kind, scene.name, c)}
+        whole = vlabels if protocol.kind == "ghosting" else set()
         for c in configs:
             tech = c.make()
             inp = tech.inputs
@@ -195,8 +197,8 @@ class Planner:
                 mf = [frames[-1]]
             test.maps_for[c.label] = mf
             test.keep[c.label] = {"all": None, "maps": mf, "shown": shown_frames(frames), "none": []}[keep]
-            if c.label in vlabels and protocol.kind == "ghosting":
-                test.keep[c.label] = None         # the video metric reads every judged frame
+            if c.label in whole:
+                test.keep[c.label] = None
             ts = sorted(set(test.frame_times[c.label].values()))
             if ("frames", inp.sampling) not in steps:   # the judged frames depend on the sampling alone
                 steps[("frames", inp.sampling)] = Normalized(test.frame_times[c.label])
@@ -206,7 +208,7 @@ class Planner:
             test.metrics_keys[c.label], test.metrics_folders[c.label] = mkey, str(mfolder)
             mrec = self.store.done(mfolder, mkey, verify_files=bool(mf))
             if mrec is not None and self._run_intact(folder, key, verify=bool(mf)) and (
-                    c.label not in vlabels or protocol.kind != "ghosting" or self.store.done(folder, key, whole=True)):
+                    c.label not in whole or self.store.done(folder, key, whole=True)):
                 self.plan.cached[mkey] = {"kind": "metrics", "key": mkey, "data": mrec["data"], "computed": False}
                 continue
             missing.append(c)
@@ -254,13 +256,14 @@ class Planner:
         if self.video_final and vlabels:
             made = {c.label: self._run_task_of.get(test.run_keys[c.label]) for c in configs}
             self._add_video(spec, scene, test, [c for c in configs if c.label in vlabels], settings, made,
-                            ref_keys, disp_keys, self.video)
+                            ref_keys, disp_keys)
         self.plan.tests.append(test)
         return test
 
-    def _add_video(self, spec, scene, test, configs, settings, made, ref_keys, disp_keys, video) -> None:
+    def _add_video(self, spec, scene, test, configs, settings, made, ref_keys, disp_keys) -> None:
         """The JOD of each column the video metric judges, once this round's runs are made."""
         from study.metrics.video import VERSION
+        video = self.video
         items = []
         for c in configs:
             ft = test.frame_times[c.label]

@@ -51,7 +51,7 @@ def _judge(store, ctx, scene, w, h, items, ref_settings, display_settings, video
             raise TaskError(f"video metric of {it['run_folder']}: the run is not complete")
         times = {int(f): int(t) for f, t in it["frame_times"].items()}
         frames = [int(f) for f in it["frames"]]
-        x8 = []
+        x8 = {}
         for f in frames:
             t = times[f]
             if t not in refs8:
@@ -63,12 +63,12 @@ def _judge(store, ctx, scene, w, h, items, ref_settings, display_settings, video
             except TamperError as exc:
                 store.invalidate(Path(it["run_folder"]), str(exc))
                 raise TaskError(f"{exc}: the run was invalidated; run the study again to re-make it") from None
-            x8.append(disps[t].output(np.stack([ch[c] for c in "RGB"], -1), run["output_space"])[2])
+            x8[f] = disps[t].output(np.stack([ch[c] for c in "RGB"], -1), run["output_space"])[2]
         figures, maps = {}, {}
         # a ghosting test is one video; a static test's views are image pairs, each on its own
         groups = [("sequence", frames)] if kind == "ghosting" else [(str(f), [f]) for f in frames]
         for name, fs in groups:
-            test = np.stack([x8[frames.index(f)] for f in fs])
+            test = np.stack([x8[f] for f in fs])
             q = {}
             for hv in HALVES:
                 ref = np.stack([refs8[times[f]][hv] for f in fs])
