@@ -16,6 +16,9 @@ Buffers (row-major (H, W, ...), origin top-left):
 """
 from __future__ import annotations
 
+import dataclasses
+from dataclasses import dataclass
+
 import numpy as np
 
 from backend import array, dr, mi, opaque
@@ -49,15 +52,30 @@ def _direction_position(cam: CameraState, d: mi.Vector3f) -> mi.Point2f:
     return mi.Point2f((x / -z / tx + 1) * 0.5 * cam.width, (1 - y / -z / ty) * 0.5 * cam.height)
 
 
+@dataclass(frozen=True)
+class FrustumCamera(CameraState):
+    """A camera whose frustum has the aspect of another image: an upscaler renders at a fraction of
+    the output's size, over the output's frustum, so its render pixels may be a little off square.
+    (Here, not in scenes.camera: references key on the scenes package's code and need no change.)"""
+    aspect: float = 1.0
+
+    @property
+    def tan_half(self) -> tuple[float, float]:
+        ty = float(np.tan(np.radians(self.yfov_deg) / 2))
+        return ty * self.aspect, ty
+
+
 def _gather3(arr: mi.Float, i) -> mi.Vector3f:
     return dr.gather(mi.Vector3f, arr, i)
 
 
 class Rasterizer:
-    """Renders frames of one scene at one resolution; holds the GL context."""
+    """Renders frames of one scene at one resolution; holds the GL context. `aspect`: the frustum's
+    width / height when it is not the image's (a render at an upscaler's fraction of the output
+    keeps the output's frustum)."""
 
-    def __init__(self, scene: ResolvedScene, width: int, height: int):
-        self.scene, self.width, self.height = scene, width, height
+    def __init__(self, scene: ResolvedScene, width: int, height: int, aspect: float | None = None):
+        self.scene, self.width, self.height, self.aspect = scene, width, height, aspect
         self.vis = VisibilityPass(width, height)
         self._geo_cache: tuple | None = None
         self._static = all(scene.is_static(i) for i in range(len(scene.meshes)))
@@ -65,6 +83,12 @@ class Rasterizer:
     @property
     def samples_per_pixel(self) -> int:
         return self.vis.samples_per_pixel
+
+    def camera(self, t: int) -> CameraState:
+        cam = self.scene.camera(t, self.width, self.height)
+        if self.aspect is None:
+            return cam
+        return FrustumCamera(**{f.name: getattr(cam, f.name) for f in dataclasses.fields(cam)}, aspect=self.aspect)
 
     def geometry(self, t: int):
         key = 0 if self._static else t
@@ -129,7 +153,7 @@ class Rasterizer:
         out = np.zeros((H * W, 3), np.float64)
         needed: set[int] = set()
         if len(sel):
-            cam = self.scene.camera(t, W, H)
+            cam = self.camera(t)
             geo = self.geometry(t)
             idx = array(mi.UInt32, sel, np.uint32)
             for jit in offsets:
@@ -154,7 +178,7 @@ class Rasterizer:
         if unknown:
             raise RasterError(f"unknown buffer(s) {sorted(unknown)}; available: {BUFFERS}")
         W, H = self.width, self.height
-        cam = self.scene.camera(t, W, H)
+        cam = self.camera(t)
         obj_np, prim_np = self.vis.render(self.scene, t, cam.view(), cam.projection(jitter))
         geo = self.geometry(t)
         n_obj = geo.n_objects
@@ -197,7 +221,7 @@ class Rasterizer:
             facing = dr.select(dr.dot(n_geo, p - ray_o) > 0, -n_sh, n_sh)
             out["normal"] = img(dr.select(valid, facing, 0.0), 3)
         if "motion" in buffers or "prev_depth" in buffers:
-            prev_cam = self.scene.camera(prev_t, W, H)
+            prev_cam = self.camera(prev_t)
             pp = self._prev_positions(prev_t)
             p_prev = _gather3(pp, i0) * b0 + _gather3(pp, i1) * b1 + _gather3(pp, i2) * b2
             pos_prev, depth_prev = image_position(prev_cam, p_prev)

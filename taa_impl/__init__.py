@@ -35,6 +35,8 @@ from .simple import Accumulation, AccumulationParams, NoAA, NoAAParams
 from .smaa import SMAA
 from .sparse import SparseParams, SparseTAA
 from .ferrando import FerrandoParams, FerrandoTAA
+from .taau import TAAU, TAAUParams
+from .upscale import SpatialParams, SpatialUpscale, Upscaler, render_size
 
 
 class Preset:
@@ -68,6 +70,8 @@ PRESETS: dict[str, Preset] = {p.name: p for p in (
     Preset("taa_ferrando_text", FerrandoTAA, history_weight=0.95, clamp="current"),
     Preset("taa_ferrando_code", FerrandoTAA, history_weight=0.6, clamp="history"),
     Preset("taa_ferrando_code_noclamp", FerrandoTAA, history_weight=0.3, clamp="none"),
+    # upscaling (taa_impl.upscale): the spatial floor with a bilinear filter
+    Preset("upscale_bilinear", SpatialUpscale, filter="bilinear"),
 )}
 
 TECHNIQUES: dict[str, Callable[..., Technique]] = {
@@ -78,6 +82,8 @@ TECHNIQUES: dict[str, Callable[..., Technique]] = {
     BaselineTAA.name: BaselineTAA,
     ImprovedTAA.name: ImprovedTAA,
     SparseTAA.name: SparseTAA,     # 'taa_sparse' (seed 002), taa_impl/sparse.py
+    SpatialUpscale.name: SpatialUpscale,   # 'upscale_spatial': No AA at render_scale, Lanczos-2
+    TAAU.name: TAAU,                       # 'taau', taa_impl/taau.py
     **PRESETS,
 }
 
@@ -96,4 +102,5 @@ __all__ = ["TECHNIQUES", "PRESETS", "Preset", "make", "Technique", "TAAParams", 
            "BaselineTAA", "ImprovedTAA", "NoAA", "NoAAParams", "Accumulation", "AccumulationParams",
            "FXAA", "FXAAParams", "FXAA_QUALITY_PRESETS", "ENCODED", "FEEDBACK_PRESETS",
            "SHARPEN_KERNELS", "SAMPLING_MODES", "OUTPUT_SPACES", "SparseTAA", "SparseParams",
-           "FerrandoTAA", "FerrandoParams"]
+           "FerrandoTAA", "FerrandoParams", "TAAU", "TAAUParams", "SpatialUpscale", "SpatialParams",
+           "Upscaler", "render_size"]

@@ -164,10 +164,14 @@ class Inputs:
     cameras: bool               # current and previous camera states
     extra_samples: int          # supersampled samples per pixel its mask asks for (0: none)
     subframes: int              # jittered sub-frames per output ('supersample'), else 1
+    render_scale: float = 1.0   # the raster renders render_size(output, render_scale) (taa_impl.upscale)
+    upsamples: bool = False     # process(..., output_size=(W, H)): renders below the output's size
+    jitter_period: int = 16     # 'sequence': frame k is jittered by halton_offset(k, jitter_period)
 
     def shaded_samples(self, extra_fraction: float = 0.0) -> float:
-        """Samples shaded per pixel per output frame; `extra_fraction`: share of masked pixels."""
-        return float(self.subframes) + self.extra_samples * extra_fraction
+        """Samples shaded per output pixel per output frame; `extra_fraction`: share of masked pixels.
+        An upscaler shades render_scale^2 per output pixel."""
+        return (float(self.subframes) + self.extra_samples * extra_fraction) * self.render_scale ** 2
 
 
 class Technique:

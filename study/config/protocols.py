@@ -96,10 +96,12 @@ def frame_key(t: int, jitter, prev_t: int) -> tuple:
     return (t, round(float(jitter[0]), 9), round(float(jitter[1]), 9), prev_t)
 
 
-def step_jitters(step: Step, sampling: str, subframes: int = 1) -> list[tuple[float, float]]:
-    """The jitters of the raster frames one step of a technique of this sampling reads."""
+def step_jitters(step: Step, sampling: str, subframes: int = 1, period: int = TAA_PERIOD
+                 ) -> list[tuple[float, float]]:
+    """The jitters of the raster frames one step of a technique of this sampling reads; `period`:
+    a sequence technique's jitter phase count (an upscaler's depends on its scale)."""
     if sampling == "sequence":
-        return [tuple(halton_offset(step.k, TAA_PERIOD))]
+        return [tuple(halton_offset(step.k, period))]
     if sampling == "centre":
         return [(0.0, 0.0)]
     if sampling == "supersample":

@@ -12,15 +12,17 @@ from display import DisplayTransform
 from raster import Rasterizer
 from scenes import ResolvedScene
 from scenes.jitter import halton_offsets
+from taa_impl.upscale import render_size
 
 from study.config.protocols import Step, frame_key, judged_steps, step_jitters
 
 
 class FrameSource:
-    """Raster frames of one scene, each distinct (time, jitter, previous time) rendered once."""
+    """Raster frames of one scene, each distinct (time, jitter, previous time) rendered once.
+    `aspect`: the output's frustum, for a render below the output's size (an upscaler's)."""
 
-    def __init__(self, scene: ResolvedScene, width: int, height: int, buffers):
-        self.raster = Rasterizer(scene, width, height)
+    def __init__(self, scene: ResolvedScene, width: int, height: int, buffers, aspect: float | None = None):
+        self.raster = Rasterizer(scene, width, height, aspect)
         self.buffers = tuple(sorted(set(buffers) | {"color"}))
         self._memo: dict = {}
         self.rendered = 0
@@ -54,8 +56,10 @@ def drive(tech, step: Step, src: FrameSource, scene: ResolvedScene, width: int, 
         kwargs["display"] = display
     if inp.cameras:
         kwargs["cameras"] = (scene.camera(step.t, width, height), scene.camera(step.prev_t, width, height))
+    if inp.upsamples:
+        kwargs["output_size"] = (width, height)
     if inp.sampling == "sequence":
-        (jit,) = step_jitters(step, "sequence")
+        (jit,) = step_jitters(step, "sequence", period=inp.jitter_period)
         frame = src.frame(step.t, jit, step.prev_t)
         if inp.extra_samples:
             # Sparse supersampling: extra samples only where the history cannot serve the pixel.
@@ -83,22 +87,27 @@ def run_schedule(scene: ResolvedScene, width: int, height: int, schedule: list[S
     is handed to it as it is made and not kept ('images' stays empty): 100 frames of ten
     techniques at 1600x900 would hold 17 GB. Timing is not measured here (see study.engine.costs)."""
     techs = {c.label: c.make() for c in configs}
-    needs = set().union(*(t.inputs.buffers for t in techs.values()))
     judged = {label: {s.frame for s in judged_steps(schedule, t.inputs.sampling)} for label, t in techs.items()}
     out = {label: {"images": {}, "output_space": t.output_space, "nonfinite": 0, "stats": {}}
            for label, t in techs.items()}
-    src = FrameSource(scene, width, height, needs)
+    sizes = {label: render_size(width, height, t.inputs.render_scale) for label, t in techs.items()}
+    srcs: dict[tuple, FrameSource] = {}     # one per render size: upscalers render below the output
     last_t = None
     try:
+        for size in dict.fromkeys(sizes.values()):
+            users = [techs[l].inputs.buffers for l in techs if sizes[l] == size]
+            aspect = None if size == (width, height) else width / height
+            srcs[size] = FrameSource(scene, *size, set().union(*users), aspect)
         for step in tqdm(schedule, desc=desc or scene.name, unit="frame", disable=not progress,
                          leave=False, mininterval=1.0):
             if last_t is not None and step.t != last_t:
-                src.forget_before(step.t)
+                for src in srcs.values():
+                    src.forget_before(step.t)
             last_t = step.t
             for label, tech in techs.items():
                 if tech.inputs.sampling != "sequence" and step.frame not in judged[label]:
                     continue
-                img, stats = drive(tech, step, src, scene, width, height, displays.get(step.t))
+                img, stats = drive(tech, step, srcs[sizes[label]], scene, width, height, displays.get(step.t))
                 out[label]["nonfinite"] += int(getattr(tech, "last_nonfinite_count", 0))
                 if step.frame in judged[label] and step.keep:
                     if emit is None:
@@ -108,5 +117,6 @@ def run_schedule(scene: ResolvedScene, width: int, height: int, schedule: list[S
                     if stats:
                         out[label]["stats"][step.frame] = stats
     finally:
-        src.close()
+        for src in srcs.values():
+            src.close()
     return out

@@ -1,0 +1,206 @@
+"""Temporal and spatial upscaling: techniques that render at `render_scale` x the output's size and
+output at the output's size, judged against the output-size reference like every other technique.
+
+The driver renders an upscaler's frames at `render_size(W, H, scale)` over the output's frustum
+(raster.Rasterizer(aspect=)), jittered with the technique's own phase count (`Inputs.jitter_period`),
+and calls `process(frame, jitter=, far=, output_size=(W, H), ...)`. Buffers (colour, depth, motion)
+come at the render resolution, motion in render pixels, as engines hand them to an upscaler.
+
+Coordinates: output pixel (X, Y) has its centre at (X + 0.5, Y + 0.5) output pixels, i.e. at
+((X + 0.5) rw / W, (Y + 0.5) rh / H) render pixels; render pixel (x, y)'s sample was taken at
+(x + 0.5 + jx, y + 0.5 + jy) render pixels (the jitter moves the sample, taa_impl.base).
+
+Here: the base class, the Lanczos-2 kernel and samplers, and the spatial floor (No AA upsampled,
+bilinear or Lanczos-2). taa_impl.taau is a plain TAAU, taa_impl.fsr2 an FSR 2-class upscaler.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+import backend  # noqa: F401
+from backend import dr, mi
+
+from . import kernels as K
+from . import sanitize
+from .base import Inputs, Technique, from_drjit_color, to_drjit
+
+
+def render_size(width: int, height: int, scale: float) -> tuple[int, int]:
+    """The render resolution of an output at `scale` (FSR 2's rule: output / ratio, truncated)."""
+    scale = check_scale(scale)
+    return max(1, int(width * scale + 1e-6)), max(1, int(height * scale + 1e-6))
+
+
+def check_scale(scale) -> float:
+    s = float(scale)
+    if not (math.isfinite(s) and 0.1 <= s <= 1.0):
+        raise ValueError(f"render_scale must be in [0.1, 1], got {scale!r}")
+    return s
+
+
+def fsr2_phase_count(render_width: int, output_width: int) -> int:
+    """FSR 2's jitter phase count: int(8 (output / render)^2), truncated (8, 18, 32, 72 at ratios
+    1, 1.5, 2, 3; the +1e-6 keeps an exact ratio from rounding down)."""
+    return max(1, int(8.0 * (output_width / render_width) ** 2 + 1e-6))
+
+
+def lanczos2(x):
+    """Lanczos-2: sinc(x) sinc(x / 2) for |x| < 2, else 0 (sinc(x) = sin(pi x) / (pi x)); 1 at 0."""
+    ax = dr.abs(x)
+    px = math.pi * ax
+    small = ax < 1e-4
+    w = 2.0 * dr.sin(px) * dr.sin(px * 0.5) / dr.select(small, 1.0, px * px)
+    return dr.select(ax >= 2.0, 0.0, dr.select(small, 1.0, w))
+
+
+def lanczos2_sample(grid: K.Grid, img, px, py, dering: bool = True):
+    """`img` (on `grid`) at continuous positions (px, py) in its pixel units, with the separable
+    4x4 Lanczos-2 filter, weights normalised to sum 1, clamp-to-edge. `dering`: clamp into the
+    min/max of the 2x2 nearest texels (the filter's negative lobes ring at edges)."""
+    x0, y0, tx, ty = K._texel_coords(grid, px, py)
+    wx = [lanczos2(tx + 1.0), lanczos2(tx), lanczos2(1.0 - tx), lanczos2(2.0 - tx)]
+    wy = [lanczos2(ty + 1.0), lanczos2(ty), lanczos2(1.0 - ty), lanczos2(2.0 - ty)]
+    sx, sy = wx[0] + wx[1] + wx[2] + wx[3], wy[0] + wy[1] + wy[2] + wy[3]
+    ref = K.texel(grid, img, x0, y0)
+    out = None
+    for j in range(4):
+        row = None
+        for i in range(4):
+            v = (K.texel(grid, img, x0 + (i - 1), y0 + (j - 1)) - ref) * wx[i]
+            row = v if row is None else row + v
+        out = row * wy[j] if out is None else out + row * wy[j]
+    out = ref + out / (sx * sy)          # deviations from one texel: a constant image stays exact
+    if dering:
+        t = [K.texel(grid, img, x0 + i, y0 + j) for j in (0, 1) for i in (0, 1)]
+        lo = dr.minimum(dr.minimum(t[0], t[1]), dr.minimum(t[2], t[3]))
+        hi = dr.maximum(dr.maximum(t[0], t[1]), dr.maximum(t[2], t[3]))
+        out = dr.clip(out, lo, hi)
+    return out
+
+
+@dataclass(frozen=True)
+class Frames:
+    """One upscaler step's grids and the output pixels' positions in render pixels."""
+    render: K.Grid
+    output: K.Grid
+    ux: object        # mi.Float: output pixel centres in render pixel units
+    uy: object
+    sx: float         # render / output pixels, per axis
+    sy: float
+
+    @classmethod
+    def of(cls, rw: int, rh: int, w: int, h: int) -> "Frames":
+        r, o = K.Grid(rw, rh), K.Grid(w, h)
+        sx, sy = rw / w, rh / h
+        return cls(r, o, (mi.Float(o.x) + 0.5) * sx, (mi.Float(o.y) + 0.5) * sy, sx, sy)
+
+    def nearest(self):
+        """Flat index of the render pixel each output pixel's centre lies in."""
+        return K.nearest_index(self.render, self.ux, self.uy)
+
+
+class Upscaler(Technique):
+    """Base class: the technique's Params has `render_scale`; `process` takes `output_size`."""
+
+    upsamples: ClassVar[bool] = True
+
+    @property
+    def inputs(self) -> Inputs:
+        base = super().inputs
+        return Inputs(**{**base.__dict__, "render_scale": float(self.params.render_scale),
+                         "upsamples": True, "jitter_period": self.jitter_period()})
+
+    def jitter_period(self) -> int:
+        return 16
+
+    def process(self, frame: dict, *, jitter, far: float, output_size=None, reset: bool = False,
+                display=None) -> np.ndarray:
+        """A render-resolution frame in, the (H, W, 3) float32 output-resolution image out."""
+        if output_size is None:
+            raise ValueError(f"{self.name} upsamples: pass output_size=(width, height)")
+        w, h = (int(v) for v in output_size)
+        far = float(far)
+        if not (math.isfinite(far) and far > 0):
+            raise ValueError(f"far must be finite and > 0, got {far}")
+        jx, jy = (float(v) for v in jitter)
+        if not (math.isfinite(jx) and math.isfinite(jy)):
+            raise ValueError(f"jitter must be finite, got {jitter!r}")
+        self.last_jitter = (jx, jy)
+        missing = self.needs - frame.keys()
+        if missing:
+            raise KeyError(f"{self.name} needs buffers {sorted(missing)}")
+        rw, rh = render_size(w, h, self.params.render_scale)
+        got = tuple(np.shape(frame["color"])[:2])
+        if got != (rh, rw):
+            raise ValueError(f"{self.name} at render_scale {self.params.render_scale} of {w}x{h} renders "
+                             f"{rw}x{rh}, got a {got[1]}x{got[0]} frame")
+        bufs = sanitize.check_and_repair(frame, self.needs, (rh, rw), far)
+        self.last_nonfinite = bufs.pop("_nonfinite")
+        self.last_nonfinite_count = sum(self.last_nonfinite.values())
+        if self._shape != (h, w):          # an output size change invalidates the history
+            self.reset()
+            self._shape = (h, w)
+        if reset:
+            self.reset()
+        if self._frames is None:
+            self._frames = Frames.of(rw, rh, w, h)
+        out = self._upscale(to_drjit(bufs), self._frames, far, (jx, jy))
+        return from_drjit_color(out, h, w)
+
+    def _clear_history(self) -> None:
+        self._frames = None
+        self._terms: dict = {}
+        self._clear_state()
+
+    def _clear_state(self) -> None:
+        pass
+
+    def _upscale(self, b: dict, fr: Frames, far: float, jitter):
+        raise NotImplementedError
+
+    def debug_terms(self) -> dict[str, np.ndarray]:
+        """The last frame's per-output-pixel intermediates as NumPy (H, W[, C]) float32 arrays."""
+        if not self._terms:
+            return {}
+        h, w = self._shape
+        dr.eval(*self._terms.values())
+        out = {}
+        for key, v in self._terms.items():
+            n = {mi.Color3f: 3, mi.Vector2f: 2}.get(type(v), 1)
+            a = np.asarray(dr.ravel(v) if n > 1 else mi.Float(v), np.float32)
+            out[key] = a.reshape((h, w, n) if n > 1 else (h, w)).copy()
+        return out
+
+
+SPATIAL_FILTERS = ("bilinear", "lanczos2")
+
+
+@dataclass(frozen=True)
+class SpatialParams:
+    render_scale: float = 0.5
+    filter: str = "lanczos2"       # 'bilinear' | 'lanczos2' (with a 2x2 dering clamp)
+
+    def __post_init__(self):
+        object.__setattr__(self, "render_scale", check_scale(self.render_scale))
+        if self.filter not in SPATIAL_FILTERS:
+            raise ValueError(f"filter must be one of {SPATIAL_FILTERS}, got {self.filter!r}")
+
+
+class SpatialUpscale(Upscaler):
+    """The floor: No AA rendered at the render scale (pixel centres, no jitter), upsampled in space
+    alone. At render_scale 1 both filters give No AA's image exactly (each output pixel centre is a
+    texel centre)."""
+    name = "upscale_spatial"
+    needs = frozenset({"color"})
+    Params = SpatialParams
+    sampling = "centre"
+
+    def _upscale(self, b, fr, far, jitter):
+        c = b["color"]
+        if self.params.filter == "bilinear":
+            return K.bilinear(fr.render, c, fr.ux, fr.uy)
+        return dr.maximum(lanczos2_sample(fr.render, c, fr.ux, fr.uy), 0.0)
