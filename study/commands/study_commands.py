@@ -112,7 +112,7 @@ def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
     click.echo(head)
     for r in rows:
         line = (f"{r['scene']} | {r['resolution'][0]}x{r['resolution'][1]} | {r['references']} | "
-                f"{r['raster_frames']} | {r['subframes']} | {r['technique_steps']} | "
+                f"{r['raster_frames']:g} | {r['subframes']} | {r['technique_steps']} | "
                 f"{r['technique_frames_judged']} | {r['agreement_frames']}")
         if measure:
             u, sec = r["unit_s"], r["seconds"]
@@ -163,6 +163,20 @@ def bench(width, height, repeats, tech_names, as_json):
                    f"{floor:9.2f} {ms / floor:7.1f}x")
 
 
+def _scales(text):
+    """--render-scale's value: distinct scales in [0.1, 1] (exit 2 otherwise)."""
+    if text is None:
+        return None
+    from taa_impl.upscale import check_scale
+    try:
+        scales = [check_scale(v) for v in text.split(",") if v.strip()]
+    except ValueError as exc:
+        _fail(f"--render-scale {text!r}: {exc}")
+    if not scales or len(set(scales)) != len(scales):
+        _fail(f"--render-scale {text!r}: give distinct scales, e.g. 0.5,0.67")
+    return scales
+
+
 @main.command()
 @click.argument("a")
 @click.argument("b")
@@ -177,16 +191,17 @@ def bench(width, height, repeats, tech_names, as_json):
 @click.option("--video/--no-video", default=True, show_default=True,
               help="Judge A and B by the video metric (ColorVideoVDP, JOD) where the study's [video] judges a "
                    "scene; --no-video skips it (~0.3 s a technique-frame at 320x180, plus ~10 s to load torch).")
+@click.option("--render-scale", "render_scale", default=None, callback=lambda ctx, p, v: _scales(v),
+              help="Comma-separated render scales of an upscaler A or B (taa_impl.upscale): one comparison "
+                   "per scale, e.g. 0.5,0.67.")
 @click.option("--json", "as_json", is_flag=True, help="Print one strict JSON object (nothing else on stdout).")
 @_execution_options
-def ab(a, b, scene_list, profile, study_file, gates, video, as_json, workers, threads, scheduler):
+def ab(a, b, scene_list, profile, study_file, gates, video, render_scale, as_json, workers, threads, scheduler):
     """Compare technique configuration B against A: paired differences with bootstrap intervals.
 
     A and B are 'name' or 'Label=name:field=value,...', e.g.
     taa-study ab taa_baseline "taa_baseline:sharpen=normalised" --max-worse psnr=0.25"""
-    from study.commands.ab import AB_METRICS, compare
-    from study.engine.runner import Study
-    from study.engine.tasks import TaskError
+    from study.commands.ab import AB_METRICS
     ca, cb = _techniques((a, b)) if a != b else (_techniques((a,))[0], _techniques((a,))[0])
     prof = _profile(study_file, profile)
     scene_list = scene_list or list(prof.scenes) or ["pipe", "sphere_ghosting"]
@@ -203,17 +218,47 @@ def ab(a, b, scene_list, profile, study_file, gates, video, as_json, workers, th
             _fail(f"--max-worse {g!r}: threshold {v!r} is not a number")
         if not math.isfinite(limits[m]) or limits[m] < 0:
             _fail(f"--max-worse {g!r}: the threshold must be a finite number >= 0 (how much worse B may be)")
+    pairs = [(None, ca, cb)]
+    if render_scale:
+        from study.config.techniques import at_scales, upsamples
+        if not (upsamples(ca) or upsamples(cb)):
+            _fail(f"--render-scale: neither {ca.label!r} nor {cb.label!r} upsamples (taa_impl.upscale)")
+        pairs = []
+        for sc in render_scale:
+            xa, xb = (at_scales(c, [sc])[0] for c in (ca, cb))
+            pairs.append((sc, xa, xb))
+    any_failed = False
+    blocks = []
+    for sc, xa, xb in pairs:
+        failed, block = _ab_pair(xa, xb, scene_list, prof, video, as_json, limits, sc,
+                                 _executor(workers, threads, scheduler))
+        any_failed |= bool(failed)
+        blocks.append(block)
+    if as_json:
+        click.echo(_strict_json(blocks[0] if len(blocks) == 1 else
+                                {"render_scales": [p[0] for p in pairs], "results": blocks}))
+    if any_failed:
+        sys.exit(1)
+
+
+def _ab_pair(ca, cb, scene_list, prof, video, as_json, limits, scale, executor):
+    """One A/B comparison, printed unless `as_json`: (the failed gates, its JSON object)."""
+    from study.commands.ab import compare
+    from study.engine.runner import Study
+    from study.engine.tasks import TaskError
     try:
         res = compare(ca, cb, scene_list, prof, progress=not as_json, video=video,
-                      study=Study(prof, progress=not as_json, executor=_executor(workers, threads, scheduler)))
+                      study=Study(prof, progress=not as_json, executor=executor))
     except TaskError as exc:
         _fail(str(exc))
     # a gate with no finite pair to judge fails: it cannot say B is within the threshold
     failed = {m: res.worse_by(m) for m, lim in limits.items() if not res.worse_by(m) <= lim}
-    if as_json:
-        click.echo(_strict_json({**res.as_dict(), "gates": limits, "failed": failed}))
-    else:
-        click.echo(f"B = {res.b}  vs  A = {res.a}   (differences B - A, mean [95 % bootstrap CI], n pairs)")
+    block = {**res.as_dict(), "gates": limits, "failed": failed}
+    if scale is not None:
+        block["render_scale"] = scale
+    if not as_json:
+        at = "" if scale is None else f"   at render scale {scale:g}"
+        click.echo(f"B = {res.b}  vs  A = {res.a}{at}   (differences B - A, mean [95 % bootstrap CI], n pairs)")
         for scene, per in list(res.per_scene.items()) + [("OVERALL", res.overall)]:
             cells = []
             for m, v in per.items():
@@ -230,8 +275,7 @@ def ab(a, b, scene_list, profile, study_file, gates, video, as_json, workers, th
         for m, w in failed.items():
             click.echo(f"  GATE FAILED: B is worse than A on {m} by {w:.4g} (> {limits[m]})" if math.isfinite(w)
                        else f"  GATE FAILED: {m} has no finite pair to judge")
-    if failed:
-        sys.exit(1)
+    return failed, block
 
 
 @main.command()

@@ -7,6 +7,7 @@ such files (study/config/profiles/*.toml).
     out = "out/my_study"                             # default: out/<name>
     agreement = true                                 # the reference agreement figure under each table
     sweep = false                                    # sparse supersampling's mu sweep
+    render_scale = [0.5, 0.67, 1.0]                  # every upscaler's render scales; [] = its own default
 
     [[techniques]]                                   # none or [] = the default set (the quick profile's)
     label = "Uncharted"
@@ -14,6 +15,9 @@ such files (study/config/profiles/*.toml).
     params = { sharpen = "normalised" }
     [[techniques]]
     spec = "Mine=my_taa.py:Box3x3TAA:widen=0.25"     # or the command line's form
+    [[techniques]]
+    spec = "FSR 2=fsr2"                              # an upscaler (taa_impl.upscale): one column per
+    render_scale = [0.5, 1.0]                        #   scale, 'FSR 2 ×0.5' ...; default: the study's
 
     [protocols.static]
     history = 256                                    # frames of history of the run
@@ -60,7 +64,7 @@ from . import defaults as D
 from .precision import Precision
 from .profile import Profile
 from .protocols import Protocol
-from .techniques import TechniqueConfig
+from .techniques import TechniqueConfig, at_scales, upsamples
 from .video import Video
 
 PROFILE_DIR = Path(__file__).resolve().parent / "profiles"
@@ -79,6 +83,7 @@ class TechniqueEntry(_Model):
     technique: str | None = None
     params: dict[str, Any] = Field(default_factory=dict)
     spec: str | None = None
+    render_scale: Union[float, list[float], None] = None     # an upscaler's scales (else the study's)
 
     def config(self, base: Path) -> TechniqueConfig:
         if (self.spec is None) == (self.technique is None):
@@ -172,6 +177,15 @@ class StudyModel(_Model):
     keep_frames: Literal["report", "all"] = D.KEEP_FRAMES
     precision: PrecisionEntry = Field(default_factory=PrecisionEntry)
     video: VideoEntry = Field(default_factory=VideoEntry)
+    render_scale: list[float] = Field(default_factory=list)
+
+    @field_validator("render_scale")
+    @classmethod
+    def _scales(cls, v):
+        from taa_impl.upscale import check_scale
+        if len(set(v)) != len(v):
+            raise ValueError(f"render scales must be distinct, got {v}")
+        return [check_scale(s) for s in v]
 
     @field_validator("resolution")
     @classmethod
@@ -213,9 +227,19 @@ def load_study(path: str | Path) -> Profile:
         try:
             c = t.config(base)
             c.make()
+            scales = m.render_scale
+            if t.render_scale is not None:
+                if not upsamples(c):
+                    raise ValueError("render_scale is for a technique that upsamples (taa_impl.upscale)")
+                scales = [t.render_scale] if isinstance(t.render_scale, (int, float)) else t.render_scale
+                if not scales or len(set(scales)) != len(scales):
+                    raise ValueError(f"render_scale needs distinct scales, got {t.render_scale!r}")
+            scaled = at_scales(c, scales)
+            for sc in scaled:
+                sc.make()
         except (ValueError, TypeError, KeyError) as exc:
             fail(f"techniques[{i}]", t.spec or t.technique, str(exc))
-        configs.append(c)
+        configs.extend(scaled)
     if not configs:     # no techniques (or []): the default set, the built-in profile's
         default = PROFILE_DIR / f"{D.DEFAULT_TECHNIQUES_PROFILE}.toml"
         if path.resolve() == default.resolve():

@@ -74,6 +74,30 @@ class TechniqueError(ValueError):
     pass
 
 
+def upsamples(c: TechniqueConfig) -> bool:
+    """The technique renders below the output's size at a render_scale (taa_impl.upscale)."""
+    return bool(getattr(resolve_technique(c.name), "upsamples", False))
+
+
+def render_scale(c: TechniqueConfig) -> float:
+    return float(c.make().inputs.render_scale)
+
+
+def at_scales(c: TechniqueConfig, scales) -> list[TechniqueConfig]:
+    """One column per render scale of an upscaler, labelled '<label> ×<scale>'; a config whose
+    overrides set render_scale, or that does not upsample, stays as it is."""
+    if not scales or not upsamples(c) or any(k == "render_scale" for k, _ in c.overrides):
+        return [c]
+    return [TechniqueConfig(f"{c.label} ×{float(s):g}", c.name, (*c.overrides, ("render_scale", float(s))))
+            for s in scales]
+
+
+def family(c: TechniqueConfig) -> str:
+    """An upscaler column's label without its ' ×<scale>' (the technique across scales)."""
+    head, sep, tail = c.label.rpartition(" ×")
+    return head if sep and tail == f"{render_scale(c):g}" else c.label
+
+
 ENTRY_POINT_GROUP = "taa_study.techniques"
 
 

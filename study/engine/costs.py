@@ -5,7 +5,8 @@ A technique's frame costs the samples it shades plus its resolve (spec section 1
 SMAA and the TAAs shade one sample per pixel, SSAA N, sparse supersampling 1 plus the extra
 samples its mask asked for in the run (measured there). So per scene we time, on this machine:
   raster_ms     one raster frame of the buffers the technique reads (visibility + reconstruction
-                + shading: the cost of one sample per pixel);
+                + shading: the cost of one sample per pixel), at its render size (an upscaler's
+                render_scale x the output: render_scale^2 samples per output pixel);
   extra_ms      for sparse supersampling, its supersample call on the mask of a converged frame,
                 scaled to the mean extra samples the run recorded;
   resolve_ms    the technique's own work per frame (process / process_samples), warm;
@@ -24,6 +25,7 @@ from scenes.jitter import TAA_PERIOD, halton_offset, halton_offsets
 
 from study.config.protocols import Step, step_jitters
 from study.engine.drive import FrameSource, drive
+from taa_impl.upscale import render_size
 
 REPEATS = 5
 
@@ -51,7 +53,8 @@ def measure(scene, width: int, height: int, configs: list, displays: dict, extra
     for c in configs:
         tech = c.make()
         inp = tech.inputs
-        src = FrameSource(scene, width, height, inp.buffers)
+        size = render_size(width, height, inp.render_scale)     # an upscaler's frames are smaller
+        src = FrameSource(scene, *size, inp.buffers, None if size == (width, height) else width / height)
         try:
             raster_ms = median_ms(lambda: src.raster.render(0, halton_offset(3, TAA_PERIOD), src.buffers, prev_t=0))
             first = Step(0, 0, keep=True, reset=True, prev_t=0, frame=1)
@@ -61,9 +64,12 @@ def measure(scene, width: int, height: int, configs: list, displays: dict, extra
                 subs = [src.frame(0, j, 0) for j in step_jitters(first, "supersample", inp.subframes)]
                 resolve_ms = median_ms(lambda: tech.process_samples(subs))
             else:
-                (jit,) = step_jitters(Step(0, 1, keep=True, reset=False, prev_t=0, frame=2), inp.sampling)
+                (jit,) = step_jitters(Step(0, 1, keep=True, reset=False, prev_t=0, frame=2), inp.sampling,
+                                      period=inp.jitter_period)
                 frame = src.frame(0, jit, 0)
                 kw = {"far": scene.desc.camera.far}
+                if inp.upsamples:
+                    kw["output_size"] = (width, height)
                 if inp.display:
                     kw["display"] = displays.get(0)
                 if inp.cameras:
@@ -89,7 +95,7 @@ def measure(scene, width: int, height: int, configs: list, displays: dict, extra
             spp = inp.shaded_samples(float(extra_spp.get(c.label, 0.0)) / inp.extra_samples
                                      if inp.extra_samples else 0.0)
             out[c.label] = {"raster_ms": raster_ms, "resolve_ms": resolve_ms, "extra_ms": extra_ms,
-                            "samples_per_pixel": spp,
+                            "samples_per_pixel": spp, "render_scale": inp.render_scale,
                             "total_ms": raster_ms * inp.subframes + extra_ms + resolve_ms}
         finally:
             src.close()

@@ -15,6 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from study.config.protocols import frame_key, judged_steps, step_jitters
+from taa_impl.upscale import render_size
 
 
 @dataclass
@@ -24,7 +25,7 @@ class SceneWork:
     width: int
     height: int
     references: int = 0
-    raster_frames: int = 0                                 # distinct 1-spp raster frames
+    raster_frames: float = 0                               # distinct 1-spp raster frames (output-size equivalents)
     steps: dict = field(default_factory=dict)              # label -> process calls
     subframes: dict = field(default_factory=dict)          # label -> supersample sub-frames rendered
     judged: dict = field(default_factory=dict)             # label -> technique-frames judged
@@ -56,17 +57,20 @@ def work(plan, cache=None) -> dict[str, SceneWork]:
             scene = load_scene(spec)
             sw = _get(out, spec, scene, w, h)
             schedule = protocol.schedule(scene)
-            frames = set()      # as study.engine.drive.FrameSource memoises them
+            frames = set()      # as study.engine.drive.FrameSource memoises them (one per render size)
             for c in configs:
                 inp = c.make().inputs
                 sw.configs[c.label] = c
                 steps = schedule if inp.sampling == "sequence" else judged_steps(schedule, inp.sampling)
                 sw.steps[c.label] = sw.steps.get(c.label, 0) + len(steps)
                 if inp.sampling in ("sequence", "centre"):
-                    frames |= {frame_key(s.t, j, s.prev_t) for s in steps for j in step_jitters(s, inp.sampling)}
+                    size = render_size(w, h, inp.render_scale)
+                    frames |= {(size, *frame_key(s.t, j, s.prev_t)) for s in steps
+                               for j in step_jitters(s, inp.sampling, period=inp.jitter_period)}
                 else:
                     sw.subframes[c.label] = sw.subframes.get(c.label, 0) + len(steps) * inp.subframes
-            sw.raster_frames += len(frames)
+            # a frame below the output's size costs its share of the pixels (an upscaler's)
+            sw.raster_frames += round(sum(f[0][0] * f[0][1] for f in frames) / (w * h), 3)
         elif task.kind == "metrics":
             _, spec, w, h, items = task.args[:5]
             sw = _get(out, spec, load_scene(spec), w, h)
