@@ -36,6 +36,7 @@ from .smaa import SMAA
 from .sparse import SparseParams, SparseTAA
 from .ferrando import FerrandoParams, FerrandoTAA
 from .taau import TAAU, TAAUParams
+from .fsr2 import FSR2, FSR2Params
 from .upscale import SpatialParams, SpatialUpscale, Upscaler, render_size
 
 
@@ -84,6 +85,7 @@ TECHNIQUES: dict[str, Callable[..., Technique]] = {
     SparseTAA.name: SparseTAA,     # 'taa_sparse' (seed 002), taa_impl/sparse.py
     SpatialUpscale.name: SpatialUpscale,   # 'upscale_spatial': No AA at render_scale, Lanczos-2
     TAAU.name: TAAU,                       # 'taau', taa_impl/taau.py
+    FSR2.name: FSR2,                       # 'fsr2', an FSR 2-class upscaler, taa_impl/fsr2.py
     **PRESETS,
 }
 
@@ -103,4 +105,4 @@ __all__ = ["TECHNIQUES", "PRESETS", "Preset", "make", "Technique", "TAAParams", 
            "FXAA", "FXAAParams", "FXAA_QUALITY_PRESETS", "ENCODED", "FEEDBACK_PRESETS",
            "SHARPEN_KERNELS", "SAMPLING_MODES", "OUTPUT_SPACES", "SparseTAA", "SparseParams",
            "FerrandoTAA", "FerrandoParams", "TAAU", "TAAUParams", "SpatialUpscale", "SpatialParams",
-           "Upscaler", "render_size"]
+           "Upscaler", "render_size", "FSR2", "FSR2Params"]

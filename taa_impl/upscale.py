@@ -22,7 +22,7 @@ from typing import ClassVar
 import numpy as np
 
 import backend  # noqa: F401
-from backend import dr, mi
+from backend import dr, mi, opaque
 
 from . import kernels as K
 from . import sanitize
@@ -42,9 +42,9 @@ def check_scale(scale) -> float:
     return s
 
 
-def fsr2_phase_count(render_width: int, output_width: int) -> int:
-    """FSR 2's jitter phase count: int(8 (output / render)^2), truncated (8, 18, 32, 72 at ratios
-    1, 1.5, 2, 3; the +1e-6 keeps an exact ratio from rounding down)."""
+def fsr2_phase_count(render_width: float, output_width: float) -> int:
+    """FSR 2's jitter phase count: int(8 (output / render)^2), truncated (8, 18, 23, 32, 72 at
+    ratios 1, 1.5, 1.7, 2, 3; the +1e-6 keeps an exact ratio from rounding down)."""
     return max(1, int(8.0 * (output_width / render_width) ** 2 + 1e-6))
 
 
@@ -148,7 +148,8 @@ class Upscaler(Technique):
             self.reset()
         if self._frames is None:
             self._frames = Frames.of(rw, rh, w, h)
-        out = self._upscale(to_drjit(bufs), self._frames, far, (jx, jy))
+        # opaque: a literal jitter would make each phase's kernels new, to be compiled again
+        out = self._upscale(to_drjit(bufs), self._frames, far, (opaque(mi.Float, jx), opaque(mi.Float, jy)))
         return from_drjit_color(out, h, w)
 
     def _clear_history(self) -> None:

@@ -16,6 +16,7 @@ from study.engine.results import shown_frames
 from study.reporting import plots
 from study.reporting.encode import display_8bit, exr_bytes, magma, png, slug
 from study.reporting.summaries import Summaries
+from study.reporting.upscaling import Upscaling
 from study.metrics.uncertainty import pooled
 from study.metrics.video import VERSION as VIDEO_VERSION
 from study.reporting.tables import METRIC_LABELS, UNCERTAINTY_NOTE, Table, fmt, fmt_u, thesis_layout
@@ -30,7 +31,7 @@ def _state(path: Path) -> list:
     return [st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns]
 
 
-class Report(Summaries):
+class Report(Summaries, Upscaling):
     """Artefacts of one study in `out`. Every file is listed in manifest.json with the keys of its
     inputs and its SHA-256; a file whose inputs and content are unchanged is not made again, and
     `finish` removes the files of out/{tables,images,maps,plots} that the previous manifest listed
@@ -354,6 +355,7 @@ def write_study(out: Path, res, configs, summary: dict, start: float) -> None:
     report.findings(res, variants, alt)
     converged = list(views.values())[-1] if views else []
     report.speed_error(converged)
+    report.upscaling(converged, res.ghosts, configs, thesis_roles(configs).get("Uncharted"))
     report.history_convergence(res.statics, res.thesis_history)
     report.sparse_cost(converged + [g for gs in res.ghosts.values() for g in gs])
     report.convergence(res.references)
