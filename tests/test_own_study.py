@@ -87,6 +87,11 @@ def test_readme_ab_of_the_example_against_the_baseline(own):
     ('name = "x"\n[video]\nfps = 0', "field video.fps"),
     ('name = "x"\n[video]\ntests = ["sweep"]', "field video.tests[0]"),
     ('name = "x"\n[video]\ntechniques = ["Nobody"]', "field video.techniques: names no column"),
+    ('name = "x"\nrender_scale = [0.5, 2.0]', "field render_scale"),
+    ('name = "x"\nrender_scale = [0.5, 0.5]', "render scales must be distinct"),
+    ('name = "x"\n[[techniques]]\nspec = "taa_baseline"\nrender_scale = 0.5',
+     "field techniques[0]: render_scale is for a technique that upsamples"),
+    ('name = "x"\n[[techniques]]\nspec = "taau"\nrender_scale = [0.05]', "render_scale must be in [0.1, 1]"),
 ])
 def test_bad_study_files_exit_2_naming_file_field_and_value(tmp_path, text, message):
     f = tmp_path / "bad.toml"
@@ -121,3 +126,26 @@ def test_a_technique_from_an_installed_package_entry_point(tmp_path, monkeypatch
     assert code_token(cls)          # its own source is keyed
     with pytest.raises(ValueError, match="not an entry point of 'taa_study.techniques'"):
         resolve_technique("centre_nope")
+
+
+def test_a_study_files_render_scales_make_one_column_per_upscaler_and_scale(tmp_path):
+    from study.config.studyfile import load_study
+    from study.config.techniques import family, render_scale
+    f = tmp_path / "ups.toml"
+    f.write_text('name = "u"\nrender_scale = [0.5, 0.67, 1.0]\n'
+                 '[[techniques]]\nspec = "Uncharted=taa_baseline"\n'
+                 '[[techniques]]\nspec = "FSR 2=fsr2"\n'
+                 '[[techniques]]\nspec = "T=taau:render_scale=0.77"\n'
+                 '[[techniques]]\nlabel = "L"\ntechnique = "upscale_spatial"\nrender_scale = 0.5\n')
+    cs = load_study(f).techniques
+    assert [c.label for c in cs] == ["Uncharted", "FSR 2 ×0.5", "FSR 2 ×0.67", "FSR 2 ×1", "T", "L ×0.5"]
+    assert [render_scale(c) for c in cs] == [1.0, 0.5, 0.67, 1.0, 0.77, 0.5]
+    assert [family(c) for c in cs] == ["Uncharted", "FSR 2", "FSR 2", "FSR 2", "T", "L"]
+    assert cs[1].make().inputs.jitter_period == 32 and cs[3].make().inputs.jitter_period == 8
+
+
+def test_ab_refuses_a_bad_render_scale_and_one_for_techniques_that_do_not_upsample():
+    r = _invoke(["ab", "taa_baseline", "taau", "--render-scale", "0.5,3"], code=2)
+    assert "--render-scale '0.5,3'" in r.output and "[0.1, 1]" in r.output
+    r = _invoke(["ab", "taa_baseline", "noaa", "--render-scale", "0.5"], code=2)
+    assert "neither 'taa_baseline' nor 'noaa' upsamples" in r.output
