@@ -274,6 +274,19 @@ def from_drjit_scalar(f, h: int, w: int) -> np.ndarray:
     return np.asarray(f, dtype=np.float32).reshape(h, w).copy()
 
 
+def terms_to_numpy(terms: dict, h: int, w: int) -> dict[str, np.ndarray]:
+    """A technique's per-pixel intermediates (Dr.Jit colours, vectors, scalars) as NumPy (H, W[, C])."""
+    if not terms:
+        return {}
+    dr.eval(*terms.values())
+    out = {}
+    for key, v in terms.items():
+        n = {mi.Color3f: 3, mi.Vector2f: 2}.get(type(v), 1)
+        a = np.asarray(dr.ravel(v) if n > 1 else mi.Float(v), np.float32)
+        out[key] = a.reshape((h, w, n) if n > 1 else (h, w)).copy()
+    return out
+
+
 class DisplayImageTechnique(Technique):
     """A single-image post-process on the display image (FXAA, SMAA): the driver renders the
     unjittered frame, the colour is display-encoded here, and `kernel(grid, rgb, params)` returns

@@ -49,7 +49,7 @@ import backend  # noqa: F401
 from backend import dr, mi
 
 from . import kernels as K
-from .base import TAAParams, Technique, from_drjit_color, from_drjit_scalar, sharpen_weight
+from .base import TAAParams, Technique, from_drjit_color, sharpen_weight, terms_to_numpy
 
 
 def fetch_history(params: TAAParams, grid: K.Grid, history, velocity):
@@ -137,19 +137,7 @@ class TAATechnique(Technique):
 
     def debug_terms(self) -> dict[str, np.ndarray]:
         """Intermediate images of the last frame as NumPy (H, W[, C]) float32 arrays."""
-        if not self._terms:
-            return {}
-        h, w = self._shape
-        dr.eval(*self._terms.values())
-        out = {}
-        for key, v in self._terms.items():
-            if isinstance(v, mi.Color3f):
-                out[key] = from_drjit_color(v, h, w)
-            elif isinstance(v, mi.Vector2f):
-                out[key] = np.asarray(dr.ravel(v), np.float32).reshape(h, w, 2).copy()
-            else:
-                out[key] = from_drjit_scalar(mi.Float(v), h, w)
-        return out
+        return terms_to_numpy(self._terms, *self._shape) if self._terms else {}
 
     @property
     def history(self) -> np.ndarray | None:

@@ -26,7 +26,7 @@ from backend import dr, mi, opaque
 
 from . import kernels as K
 from . import sanitize
-from .base import Inputs, Technique, from_drjit_color, to_drjit
+from .base import Inputs, Technique, from_drjit_color, terms_to_numpy, to_drjit
 
 
 def render_size(width: int, height: int, scale: float) -> tuple[int, int]:
@@ -165,16 +165,7 @@ class Upscaler(Technique):
 
     def debug_terms(self) -> dict[str, np.ndarray]:
         """The last frame's per-output-pixel intermediates as NumPy (H, W[, C]) float32 arrays."""
-        if not self._terms:
-            return {}
-        h, w = self._shape
-        dr.eval(*self._terms.values())
-        out = {}
-        for key, v in self._terms.items():
-            n = {mi.Color3f: 3, mi.Vector2f: 2}.get(type(v), 1)
-            a = np.asarray(dr.ravel(v) if n > 1 else mi.Float(v), np.float32)
-            out[key] = a.reshape((h, w, n) if n > 1 else (h, w)).copy()
-        return out
+        return terms_to_numpy(self._terms, *self._shape) if self._terms else {}
 
 
 SPATIAL_FILTERS = ("bilinear", "lanczos2")

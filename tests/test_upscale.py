@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import backend  # noqa: F401
-from backend import array, dr, mi
+from backend import array, mi
 
 import taa_impl
 from raster import Rasterizer
