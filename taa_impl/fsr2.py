@@ -21,9 +21,18 @@ scattering); 3 depth clip (disocclusion); 4 create locks (thin features). At the
    w_up / (weight + w_up)), mapped back;
 7 RCAS on the output (tone-mapped, sharpness in FSR 2's [0, 1], 2 - 2 sharpness stops); the history
 keeps the unsharpened result.
-Departures from FSR 2, each for a reason stated where it is: no reactive or transparency masks (the
-study's scenes give none), the luma instability test (fsr2_passes.luma_instability), the
-`max_accumulation` cap (FSR 2 tunes its own), lock lifetime counted in frames, RECTIFY_TOLERANCE.
+Departures from FSR 2 (checked against FSR 2.2.1's shaders, commit 1680d1e), each for a reason:
+ - the history's weight: 2.2.1 stores none (base accumulation 1, upsample weight = sum of Lanczos
+   weights / 12, i.e. a fixed exponential history); here it is accumulated and capped at
+   `max_accumulation` (as FSR 2.1 stored it), so a static pixel converges like the study's TAAs;
+ - RCAS runs on the tone-mapped output (2.2.1: on exposed linear values, with its noise term):
+   RCAS's limits assume [0, 1];
+ - locks: lifetime in frames and a trust luma (2.2.1: lifetime drained by the upsample weight and a
+   1/32-resolution shading-change luma);
+ - the luma instability test (fsr2_passes.luma_instability), and no reactive, transparency or
+   motion-divergence masks (the study's scenes give none);
+ - the exact Lanczos-2 (2.2.1 uses its polynomial approximation), box moments over on-screen taps;
+ - RECTIFY_TOLERANCE (below).
 """
 from __future__ import annotations
 

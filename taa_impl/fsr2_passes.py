@@ -76,7 +76,8 @@ def depth_clip(fr, dil_depth, dil_motion, prev_depth, tan_half: tuple[float, flo
     pixel's previous position (its 4 bilinear taps); where the surface now is farther than what
     was there by more than the separation FSR 2 requires, Ksep Kfov |render size| max(depths), the
     pixel was hidden last frame. clip = 1 - mean over those taps of saturate(separation / diff)^p,
-    p = lerp(1, 3, |render size| / |1920 x 1080|) saturated; 0 where no tap is farther."""
+    p = lerp(1, 3, |render size| / |1920 x 1080|) saturated; 0 where no tap is farther. (FSR 2.2.1
+    also multiplies by a vertical depth-slope test of the previous depth, EvaluateSurface; not here.)"""
     g = fr.render
     px = mi.Float(g.x) + 0.5 - dil_motion.x
     py = mi.Float(g.y) + 0.5 - dil_motion.y
