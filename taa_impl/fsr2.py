@@ -23,8 +23,9 @@ scattering); 3 depth clip (disocclusion); 4 create locks (thin features). At the
 keeps the unsharpened result.
 Departures from FSR 2 (checked against FSR 2.2.1's shaders, commit 1680d1e), each for a reason:
  - the history's weight: 2.2.1 stores none (base accumulation 1, upsample weight = sum of Lanczos
-   weights / 12, i.e. a fixed exponential history); here it is accumulated and capped at
-   `max_accumulation` (as FSR 2.1 stored it), so a static pixel converges like the study's TAAs;
+   weights / 12, i.e. a fixed exponential history: `history='fixed'`); by default it is accumulated
+   and capped at `max_accumulation` (as FSR 2.1 stored it), so a static pixel converges like the
+   study's TAAs;
  - RCAS runs on the tone-mapped output (2.2.1: on exposed linear values, with its noise term):
    RCAS's limits assume [0, 1];
  - locks: lifetime in frames and a trust luma (2.2.1: lifetime drained by the upsample weight and a
@@ -52,6 +53,9 @@ from .upscale import Upscaler, check_scale, fsr2_phase_count, lanczos2_sample
 RECTIFY_TOLERANCE = 2.0 / 255.0
 
 
+HISTORY_MODELS = ("accumulated", "fixed")
+
+
 @dataclass(frozen=True)
 class FSR2Params:
     render_scale: float = 0.5
@@ -64,6 +68,7 @@ class FSR2Params:
     lock_luma_tolerance: float = 0.5  # relative change of luma that kills a lock
     luma_instability: bool = True
     max_accumulation: float = 32.0    # the history's weight cap, in Lanczos weights (~frames at scale 1)
+    history: str = "accumulated"      # or 'fixed': FSR 2.2.1's (no stored weight: base 1, upsample weight / 12)
 
     def __post_init__(self):
         object.__setattr__(self, "render_scale", check_scale(self.render_scale))
@@ -75,6 +80,8 @@ class FSR2Params:
             raise ValueError(f"lock_luma_tolerance must be in (0, 10), got {self.lock_luma_tolerance!r}")
         if not (1.0 <= float(self.max_accumulation) <= 1e4):
             raise ValueError(f"max_accumulation must be in [1, 1e4], got {self.max_accumulation!r}")
+        if self.history not in HISTORY_MODELS:
+            raise ValueError(f"history must be one of {HISTORY_MODELS}, got {self.history!r}")
         for flag in ("enable_sharpening", "auto_exposure", "depth_clip", "locks", "luma_instability"):
             object.__setattr__(self, flag, bool(getattr(self, flag)))
 
@@ -130,6 +137,9 @@ class FSR2(Upscaler):
         curve = -2.0 - K.clamp01(hr_vel / 50.0)
         cur = K.rgb_to_ycocg(c * exposure)
         up, w_up, centre, vec, amin, amax = P.upsample(fr, cur, jitter, bias, curve)
+        fixed = p.history == "fixed"
+        if fixed:                 # FSR 2.2.1: the sample's weight is a twelfth of its Lanczos weights
+            w_up = w_up * (1.0 / 12.0)
         up_rgb = dr.maximum(K.ycocg_to_rgb(up), 0.0)
         luma_t = K.luminance(P.tonemap(dr.maximum(K.ycocg_to_rgb(centre), 0.0)), P.LUMA)
         if fresh:
@@ -140,7 +150,7 @@ class FSR2(Upscaler):
         else:
             h_rgb = dr.maximum(lanczos2_sample(o, self._history, px, py) * exposure, 0.0)
             ni = K.nearest_index(o, px, py)
-            weight = dr.select(valid, dr.gather(mi.Float, self._weight, ni), 0.0)
+            weight = dr.select(valid, 1.0 if fixed else dr.gather(mi.Float, self._weight, ni), 0.0)
             lock = dr.select(valid, dr.gather(mi.Float, self._lock, ni), 0.0)
             trust = dr.gather(mi.Float, self._trust, ni)
             lumas = [dr.select(valid, dr.gather(mi.Float, lh, ni), luma_t) for lh in self._lumas]
@@ -161,7 +171,8 @@ class FSR2(Upscaler):
         weight = weight * (1.0 - clip)
         moving = K.clamp01(hr_vel * 10.0)
         weight = dr.minimum(weight, weight + (w_up * 10.0 - weight) * moving)
-        weight = dr.minimum(weight, p.max_accumulation * (1.0 + lock_c))
+        if not fixed:
+            weight = dr.minimum(weight, p.max_accumulation * (1.0 + lock_c))
         # rectify the history
         influence = min(20.0, (1.0 / (fr.sx * fr.sy)) ** 3)
         box_scale = influence + (1.0 - influence) * dr.maximum(clip, K.clamp01(hr_vel / 20.0))

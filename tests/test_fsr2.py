@@ -122,7 +122,7 @@ def _itm(c):
     return c / np.maximum(1 - c.max(-1, keepdims=True), 1e-6)
 
 
-def _oracle_step(state, c, jit, w, h, max_acc=32.0):
+def _oracle_step(state, c, jit, w, h, max_acc=32.0, fixed=False):
     """One static frame (no motion, locks, depth clip, instability, exposure or RCAS), float64."""
     rh, rw = c.shape[:2]
     sx, sy = rw / w, rh / h
@@ -159,12 +159,12 @@ def _oracle_step(state, c, jit, w, h, max_acc=32.0):
             col = np.clip(acc / ws if ok else m1 / bw, dmin, dmax)
             centre = m1 / bw
             vec = np.sqrt(np.abs(m2 / bw - centre ** 2))
-            w_up = ws if ok else 0.0
+            w_up = (ws if ok else 0.0) / (12.0 if fixed else 1.0)
             up = np.maximum(_rgb(col), 0)
             if fresh:
                 hist, wgt = up, 0.0
             else:
-                hist, wgt = np.maximum(state[0][Y, X], 0), min(state[1][Y, X], max_acc)
+                hist, wgt = np.maximum(state[0][Y, X], 0), (1.0 if fixed else min(state[1][Y, X], max_acc))
                 hy = _ycocg(hist)
                 bmin, bmax = np.maximum(amin, centre - vec * influence), np.minimum(amax, centre + vec * influence)
                 tol = 2 / 255
@@ -177,12 +177,12 @@ def _oracle_step(state, c, jit, w, h, max_acc=32.0):
     return (out, weight_out), np.maximum(out, 0)
 
 
-@pytest.mark.parametrize("scale", [1.0, 0.5])
-def test_the_accumulate_pass_matches_a_float64_oracle(rng, scale):
+@pytest.mark.parametrize("scale, history", [(1.0, "accumulated"), (0.5, "accumulated"), (0.5, "fixed")])
+def test_the_accumulate_pass_matches_a_float64_oracle(rng, scale, history):
     w, h = 12, 8
     rw, rh = int(w * scale), int(h * scale)
     tech = taa_impl.make("fsr2", render_scale=scale, enable_sharpening=False, locks=False, depth_clip=False,
-                         luma_instability=False, auto_exposure=False)
+                         luma_instability=False, auto_exposure=False, history=history)
     cam = CameraState(look_at((0, 0, 5), (0, 0, 0), (0, 1, 0)), 45.0, 0.1, 100.0, w, h)
     state = None
     base = rng.random((rh, rw, 3)) * 1.5
@@ -191,7 +191,7 @@ def test_the_accumulate_pass_matches_a_float64_oracle(rng, scale):
         frame = {"color": c, "depth": np.full((rh, rw), 3.0, np.float32), "motion": np.zeros((rh, rw, 2), np.float32)}
         jit = halton_offset(k, tech.inputs.jitter_period)
         got = tech.process(frame, jitter=jit, far=100.0, output_size=(w, h), reset=k == 0, cameras=(cam, cam))
-        state, want = _oracle_step(state, c, jit, w, h)
+        state, want = _oracle_step(state, c, jit, w, h, fixed=history == "fixed")
         np.testing.assert_allclose(got, want, atol=2e-4, rtol=2e-4)
 
 
