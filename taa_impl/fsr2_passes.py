@@ -14,6 +14,7 @@ import backend  # noqa: F401
 from backend import dr, mi
 
 from . import kernels as K
+from .upscale import lanczos2
 
 LUMA = (0.2126, 0.7152, 0.0722)
 EPS = 1e-6
@@ -148,7 +149,6 @@ def upsample(fr, color_ycocg, jitter, kernel_bias, curve_bias):
     scale), the colour deringed into the 2x2 nearest samples' range; and the rectification box:
     moments with weights exp(curve_bias |offset|^2) (offset in render pixels) and the samples'
     min/max. Returns (colour, weight = sum of Lanczos weights, box centre, box vec (std), aabb)."""
-    from .upscale import lanczos2
     g = fr.render
     # the render pixel whose jittered sample is closest to the output centre's top-left
     bx = mi.Int32(dr.floor(fr.ux - 0.5 - jitter[0]))

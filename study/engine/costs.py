@@ -25,7 +25,6 @@ from scenes.jitter import TAA_PERIOD, halton_offset, halton_offsets
 
 from study.config.protocols import Step, step_jitters
 from study.engine.drive import FrameSource, drive
-from taa_impl.upscale import render_size
 
 REPEATS = 5
 
@@ -53,8 +52,7 @@ def measure(scene, width: int, height: int, configs: list, displays: dict, extra
     for c in configs:
         tech = c.make()
         inp = tech.inputs
-        size = render_size(width, height, inp.render_scale)     # an upscaler's frames are smaller
-        src = FrameSource(scene, *size, inp.buffers, None if size == (width, height) else width / height)
+        src = FrameSource.for_output(scene, width, height, inp.render_scale, inp.buffers)  # an upscaler's: smaller
         try:
             raster_ms = median_ms(lambda: src.raster.render(0, halton_offset(3, TAA_PERIOD), src.buffers, prev_t=0))
             first = Step(0, 0, keep=True, reset=True, prev_t=0, frame=1)

@@ -27,6 +27,12 @@ class FrameSource:
         self._memo: dict = {}
         self.rendered = 0
 
+    @classmethod
+    def for_output(cls, scene: ResolvedScene, width: int, height: int, scale: float, buffers) -> "FrameSource":
+        """The frames a technique of render `scale` reads for a width x height output."""
+        size = render_size(width, height, scale)
+        return cls(scene, *size, buffers, None if size == (width, height) else width / height)
+
     def frame(self, t: int, jitter, prev_t: int) -> dict:
         key = frame_key(t, jitter, prev_t)
         if key not in self._memo:
@@ -94,10 +100,11 @@ def run_schedule(scene: ResolvedScene, width: int, height: int, schedule: list[S
     srcs: dict[tuple, FrameSource] = {}     # one per render size: upscalers render below the output
     last_t = None
     try:
-        for size in dict.fromkeys(sizes.values()):
-            users = [techs[l].inputs.buffers for l in techs if sizes[l] == size]
-            aspect = None if size == (width, height) else width / height
-            srcs[size] = FrameSource(scene, *size, set().union(*users), aspect)
+        for label, size in sizes.items():
+            if size not in srcs:
+                users = [techs[l].inputs.buffers for l in techs if sizes[l] == size]
+                srcs[size] = FrameSource.for_output(scene, width, height, techs[label].inputs.render_scale,
+                                                    set().union(*users))
         for step in tqdm(schedule, desc=desc or scene.name, unit="frame", disable=not progress,
                          leave=False, mininterval=1.0):
             if last_t is not None and step.t != last_t:
