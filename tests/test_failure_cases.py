@@ -5,6 +5,7 @@ import socket
 import subprocess
 import threading
 import time
+from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
@@ -104,6 +105,30 @@ def test_a_lock_of_a_dead_process_is_broken_at_once(tmp_path):
         assert lock.read_text().split()[1] == str(os.getpid())
     assert time.perf_counter() - t0 < 5
     assert any("its process is gone" in m and str(dead.pid) in m for m in logs), logs
+
+
+def test_a_lock_of_a_killed_process_not_yet_reaped_is_broken_at_once(tmp_path):
+    """A worker killed by its user stays a zombie until its parent reaps it, and a zombie still
+    answers signal 0: the lock waited its 60-s heartbeat out (the killed-worker test's 50 s)."""
+    logs = []
+    store = Store(tmp_path, log=logs.append)
+    zombie = subprocess.Popen(["sleep", "30"])
+    try:
+        zombie.kill()
+        deadline = time.time() + 5
+        while time.time() < deadline and Path(f"/proc/{zombie.pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z":
+            time.sleep(0.01)
+        os.kill(zombie.pid, 0)                           # not reaped: the pid still exists
+        lock = tmp_path / "locks" / "k.lock"
+        lock.parent.mkdir(parents=True)
+        lock.write_text(f"{socket.gethostname()} {zombie.pid} 1")
+        t0 = time.perf_counter()
+        with store.lock("k", stale_s=60):
+            pass
+        assert time.perf_counter() - t0 < 5
+        assert any("its process is gone" in m and str(zombie.pid) in m for m in logs), logs
+    finally:
+        zombie.wait()
 
 
 def test_a_lock_of_a_live_process_or_another_host_is_waited_for(tmp_path):

@@ -36,7 +36,7 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-@pytest.mark.long(seconds=95)
+@pytest.mark.long(seconds=30)
 def test_local_cluster_gives_the_in_process_numbers_and_survives_a_killed_worker(tmp_path, scenes, monkeypatch):
     monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache_a"))
     run_cli(["run", "--scenes", ",".join(scenes), "--no-agreement", "--precision", "per_pixel", *TECHS,

@@ -94,6 +94,9 @@ def _dead_owner(owner: str) -> bool:
         return True
     except OSError:          # exists, another user's
         return False
+    # a killed process its parent has not reaped yet (a zombie) still answers signal 0
+    with contextlib.suppress(OSError, IndexError):
+        return Path(f"/proc/{parts[1]}/stat").read_text().rsplit(")", 1)[1].split()[0] in ("Z", "X")
     return False
 
 
