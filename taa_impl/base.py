@@ -56,12 +56,26 @@ SHARPEN_KERNELS: dict[str, tuple[tuple[float, ...], ...]] = {
 }
 
 
-def sharpen_weight(name: str) -> float:
-    """The w of a cross-shaped, unit-sum kernel [[0,-w,0],[-w,1+4w,-w],[0,-w,0]]."""
+def sharpen_weight(name) -> float:
+    """The w of a cross-shaped, unit-sum kernel [[0,-w,0],[-w,1+4w,-w],[0,-w,0]]: a kernel's name, or
+    w itself (a strength between none's 0, the normalised kernel's 0.25 and Xu's 1)."""
+    if not isinstance(name, str):
+        return float(name)
     k = SHARPEN_KERNELS[name]
     w = -float(k[0][1])
     assert k[1][1] == 1 + 4 * w and k[0][0] == k[0][2] == k[2][0] == k[2][2] == 0
     return w
+
+
+def check_sharpen(sharpen) -> None:
+    """A kernel's name or a strength w in [0, 4] (w > 4 would weigh the centre above 17)."""
+    if isinstance(sharpen, bool) or not isinstance(sharpen, (str, int, float)):
+        raise ValueError(f"sharpen must be one of {sorted(SHARPEN_KERNELS)} or a strength in [0, 4], got {sharpen!r}")
+    if isinstance(sharpen, str):
+        if sharpen not in SHARPEN_KERNELS:
+            raise ValueError(f"sharpen must be one of {sorted(SHARPEN_KERNELS)} or a strength in [0, 4], got {sharpen!r}")
+    elif not (math.isfinite(sharpen) and 0 <= sharpen <= 4):
+        raise ValueError(f"sharpen strength must be in [0, 4] (0 none, 0.25 normalised, 1 Xu), got {sharpen!r}")
 
 
 BOX_SPACES = ("minmax", "ycocg")
@@ -80,7 +94,7 @@ class TAAParams:
     clip_eps: float = 1e-8           # INSIDE's FLT_EPS added to the clip box half-size (absolute)
     clip_tol: float = 1e-4           # plus this times the box's magnitude (kernels.clip_toward_centre);
     #                                  0 = INSIDE's clip, whose decision float32 rounding makes
-    sharpen: str = "xu"
+    sharpen: str | float = "xu"               # a SHARPEN_KERNELS name or the cross kernel's w
     # Extensions beyond the seeds (spec section 7); every default is "off" = the baseline above.
     box: str = "minmax"                       # 'minmax': RGB box; 'ycocg': box and clip in YCoCg (Karis 2014)
     variance_clip_gamma: float | None = None  # Salvi 2016: box = mu -/+ gamma*sigma over the 3x3
@@ -105,8 +119,9 @@ class TAAParams:
         if len(self.feedback_luma) != 3:
             raise ValueError("feedback_luma needs 3 weights")
         object.__setattr__(self, "feedback_luma", tuple(float(v) for v in self.feedback_luma))
-        if self.sharpen not in SHARPEN_KERNELS:
-            raise ValueError(f"sharpen must be one of {sorted(SHARPEN_KERNELS)}")
+        check_sharpen(self.sharpen)
+        if not isinstance(self.sharpen, str):       # 1 and 1.0 are one technique (and one run key)
+            object.__setattr__(self, "sharpen", float(self.sharpen))
         if self.box not in BOX_SPACES:
             raise ValueError(f"box must be one of {BOX_SPACES}, got {self.box!r}")
         if self.variance_clip_gamma is not None:

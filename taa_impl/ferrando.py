@@ -67,7 +67,7 @@ import backend  # noqa: F401
 from backend import array, dr, mi
 
 from . import kernels as K
-from .base import SHARPEN_KERNELS, Technique, sharpen_weight
+from .base import Technique, check_sharpen, sharpen_weight
 from .baseline import TAATechnique
 
 CLAMPS = ("current", "history", "none")
@@ -81,7 +81,7 @@ class FerrandoParams:
     clamp: str = "current"           # one of CLAMPS (module docstring, mistake 1)
     motion_source: str = "camera"    # 'camera': from depth + both cameras (the seed's); 'buffer'
     offscreen: str = "reject"        # one of OFFSCREEN
-    sharpen: str = "none"            # a key of base.SHARPEN_KERNELS; the seed's optional one is 'xu'
+    sharpen: str | float = "none"    # a key of base.SHARPEN_KERNELS or a strength; the seed's optional one is 'xu'
 
     def __post_init__(self):
         k = float(self.history_weight)
@@ -92,8 +92,9 @@ class FerrandoParams:
                                ("offscreen", OFFSCREEN)):
             if getattr(self, field) not in allowed:
                 raise ValueError(f"{field} must be one of {allowed}, got {getattr(self, field)!r}")
-        if self.sharpen not in SHARPEN_KERNELS:
-            raise ValueError(f"sharpen must be one of {sorted(SHARPEN_KERNELS)}")
+        check_sharpen(self.sharpen)
+        if not isinstance(self.sharpen, str):
+            object.__setattr__(self, "sharpen", float(self.sharpen))
 
 
 # ----------------------------------------------------------------------------- camera-only motion

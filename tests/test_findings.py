@@ -113,8 +113,25 @@ def test_a_claim_without_cases_is_not_testable_and_the_words_carry_the_numbers()
     assert "+5.00" in text and "1 of 1" in text and "reproduced" in text and "100 %" in text
     assert "Not testable here" in FT.sentence(claim(rec, "improved_less_ghosting"))
     md = FT.markdown(rec)
-    assert md.startswith("## Findings") and md.count("\n- ") == len(rec["claims"])
+    assert md.startswith("## Findings") and md.count("\n- ") == len(rec["claims"]) + len(rec["factors"])
     assert "\\begin{itemize}" in FT.latex_summary(rec) and "%" not in FT.latex_summary(rec).replace("\\%", "")[40:]
+
+
+def test_the_rebuilt_scenes_gap_is_no_aa_s_and_fxaa_s_and_a_technique_s_excess_is_beyond_it():
+    # pipe, thesis: No AA 38.782, FXAA 42.601, Uncharted 36.487, Improved 46.162 (thesis_figures.toml)
+    rec = record([static("pipe", 40.0, 35.0, **{"No AA": 36.782, "FXAA": 39.601})])
+    f = next(x for x in rec["factors"] if x["id"] == "rebuilt_scenes")
+    (c,) = f["cases"]
+    assert c["gaps"]["No AA"] == pytest.approx(-2.0) and c["gaps"]["FXAA"] == pytest.approx(-3.0)
+    assert c["scene_gap"] == pytest.approx(-2.5) and c["spread"] == pytest.approx(1.0)
+    assert c["excess"]["Improved"] == pytest.approx(40.0 - 46.162 + 2.5)
+    assert c["excess"]["Uncharted"] == pytest.approx(35.0 - 36.487 + 2.5)
+    assert f["protocol"] == "cold" and f["excess"]["Improved"]["n"] == 1
+    text = FT.summary(rec)[-1]
+    assert "-2.50 dB from the thesis's figures" in text and "Improved -3.66 dB" in text
+    # without No AA or FXAA among the columns there is no such factor
+    res = StudyResults(views={"cold": [static("pipe", 40.0, 35.0)]}, ghosts={})
+    assert F.rebuilt_scenes(res.views, {k: v for k, v in ROLES.items() if k != "FXAA"}) is None
 
 
 def test_the_sharpen_variants_are_found_by_what_they_are_not_by_their_labels():

@@ -162,12 +162,12 @@ def _load_scenes(names):
         _fail(str(exc))
 
 
-def run_study(profile, names, configs, out_dir, no_agreement, executor, sweep=True):
+def run_study(profile, names, configs, out_dir, no_agreement, executor, sweep=True, own_columns=True):
     """The study end to end: plan and execute its tasks (study.engine.runner), then write its tables, figures
     and report (study.reporting.report.write_study). `profile`: a Profile (study file). Returns the folder."""
     import time as _time
 
-    from study.config.profile import SPARSE_SWEEP
+    from study.config.profile import SPARSE_SWEEP, sharpen_sweep_configs
     from study.engine.runner import Study
     from study.engine.tasks import TaskError
     from study.reporting.report import write_study
@@ -178,8 +178,10 @@ def run_study(profile, names, configs, out_dir, no_agreement, executor, sweep=Tr
     _cache_folder()
     study = Study(profile, executor=executor)
     sweep_cfg = SPARSE_SWEEP if sweep else ()
+    # the sharpen sweep goes with the profile's own columns (not with --techniques)
+    sharpen = sharpen_sweep_configs(profile.sharpen_sweep) if own_columns else ()
     try:
-        res = study.run(names, configs, agreement=not no_agreement, sweep=sweep_cfg)
+        res = study.run(names, configs, agreement=not no_agreement, sweep=sweep_cfg, sharpen=sharpen)
     except TaskError as exc:
         _fail(str(exc))
     summary = {**res.stats, "profile": study.profile.name, "scenes": names,

@@ -41,7 +41,7 @@ def run(study_file, profile, scene_list, tech_list, out_dir, no_agreement, rule,
     names = scene_list or list(prof.scenes) or builtin_names()
     configs = _techniques(tech_list, prof.techniques)
     run_study(prof, names, configs, out_dir, no_agreement or not prof.agreement,
-              _executor(workers, threads, scheduler), sweep=prof.sweep and not tech_list)
+              _executor(workers, threads, scheduler), sweep=prof.sweep and not tech_list, own_columns=not tech_list)
 
 
 @main.command()
@@ -60,7 +60,7 @@ def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
     --measure, what that costs on this machine, extrapolated from one unit of each kind."""
     from scenes import builtin_names
     from study.engine import estimate as E
-    from study.config.profile import SPARSE_SWEEP
+    from study.config.profile import SPARSE_SWEEP, sharpen_sweep_configs
     from study.engine.runner import Study
     from study.engine.tasks import TaskError
     from study.engine.tasks import load_scene as _load
@@ -74,7 +74,8 @@ def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
     study = Study(prof, progress=False)
     with tempfile.TemporaryDirectory() as empty:
         planner = Study(prof, cache_root=Path(empty), progress=False) if from_scratch else study
-        plan = planner.plan(names, configs, agreement=prof.agreement, sweep=SPARSE_SWEEP if prof.sweep else ())[0]
+        plan = planner.plan(names, configs, agreement=prof.agreement, sweep=SPARSE_SWEEP if prof.sweep else (),
+                            sharpen=sharpen_sweep_configs(prof.sharpen_sweep))[0]
         work = E.work(plan, None if from_scratch else study.cache)
     rows, totals = [], {}
     for name, sw in work.items():

@@ -18,6 +18,11 @@ AGREEMENT_TARGET_NOISE_DB = _reference.TARGET_NOISE_DB
 # what a scene's raster-against-reference check must reach (study.engine.agreement)
 AGREEMENT_TARGETS = {"agreement_psnr_db": 45.0, "interior_max_abs_err": 1e-4, "reference_noise_psnr_db": 55.0}
 SWEEP_SCENES = ("sphere_ghosting", "disocclusion")   # where the sparse-supersampling mu sweep runs
+# The sharpen strength sweep (a factor of the thesis's figures): both thesis TAAs at each strength w
+# of the cross kernel (0 none, 0.25 the normalised kernel, 1 Xu's), at the thesis's history, on the
+# thesis's static scenes (those of study/reporting/thesis_figures.toml).
+SHARPEN_SWEEP_SCENES = ("pipe", "pipe_tilted", "blinds", "arched_window", "atrium", "flowers", "hard_edges",
+                        "hairball_unlit", "hairball_lit")
 GHOSTING_SKIP = ("accumulation",)              # N sub-frames per frame: too slow for sequences
 KEEP_FRAMES = "report"                         # a run keeps, once judged, the frames the report reads
 # A study file that lists no techniques compares this built-in profile's: the thesis's columns,

@@ -16,6 +16,26 @@ SPARSE_SWEEP = tuple(TechniqueConfig(f"Sparse mu={mu}", "taa_sparse", (("mu", mu
 
 THESIS_HISTORY = D.THESIS_HISTORY
 
+# The sharpen sweep's TAAs: the thesis's two, by their columns' names.
+SHARPEN_SWEEP_TAAS = (("Uncharted", "taa_baseline"), ("Improved", "taa_improved"))
+
+
+def sharpen_sweep_configs(strengths) -> tuple:
+    """Both thesis TAAs at each sharpen strength w, labelled 'Uncharted, sharpen w=0.5'."""
+    return tuple(TechniqueConfig(f"{role}, sharpen w={w:g}", name, (("sharpen", float(w)),))
+                 for role, name in SHARPEN_SWEEP_TAAS for w in strengths)
+
+
+def sharpen_sweep_point(label: str) -> tuple[str, float] | None:
+    """(TAA role, w) of a sharpen sweep column's label, None for any other label."""
+    role, sep, rest = label.partition(", sharpen w=")
+    if not sep or role not in dict(SHARPEN_SWEEP_TAAS):
+        return None
+    try:
+        return role, float(rest)
+    except ValueError:
+        return None
+
 # The thesis's columns by what they are: a registry technique with its default parameters.
 THESIS_TECHNIQUES = {"No AA": "noaa", "FXAA": "fxaa", "SMAA": "smaa", "Uncharted": "taa_baseline",
                      "Improved": "taa_improved"}
@@ -48,6 +68,8 @@ class Profile:
     out: str | None = None
     agreement: bool = True
     sweep: bool = False
+    sharpen_sweep: tuple = ()             # strengths w of both thesis TAAs' sharpen (sharpen_sweep_configs)
+    sharpen_sweep_scenes: tuple = D.SHARPEN_SWEEP_SCENES
     thesis_history: int = THESIS_HISTORY
     keep_frames: str = D.KEEP_FRAMES      # 'report': a run keeps, once judged, the frames the report reads; 'all'
     source: str = ""

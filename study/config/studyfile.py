@@ -178,6 +178,18 @@ class StudyModel(_Model):
     precision: PrecisionEntry = Field(default_factory=PrecisionEntry)
     video: VideoEntry = Field(default_factory=VideoEntry)
     render_scale: list[float] = Field(default_factory=list)
+    sharpen_sweep: list[float] = Field(default_factory=list)
+    sharpen_sweep_scenes: list[str] = Field(default_factory=lambda: list(D.SHARPEN_SWEEP_SCENES))
+
+    @field_validator("sharpen_sweep")
+    @classmethod
+    def _strengths(cls, v):
+        from taa_impl.base import check_sharpen
+        if len(set(v)) != len(v):
+            raise ValueError(f"sharpen strengths must be distinct, got {v}")
+        for w in v:
+            check_sharpen(float(w))
+        return sorted(float(w) for w in v)
 
     @field_validator("render_scale")
     @classmethod
@@ -280,7 +292,8 @@ def load_study(path: str | Path) -> Profile:
                    ref_settings=tuple(sorted(m.reference.items())), ghosting_techniques_skip=tuple(m.ghosting_skip),
                    sweep_scenes=tuple(m.sweep_scenes), agreement_samples=m.agreement_samples,
                    scenes=tuple(scenes), techniques=tuple(configs), out=out, agreement=m.agreement,
-                   sweep=m.sweep, thesis_history=st.thesis_history, keep_frames=m.keep_frames, source=str(path),
+                   sweep=m.sweep, sharpen_sweep=tuple(m.sharpen_sweep), sharpen_sweep_scenes=tuple(m.sharpen_sweep_scenes),
+                   thesis_history=st.thesis_history, keep_frames=m.keep_frames, source=str(path),
                    precision=Precision(**m.precision.model_dump()), video=Video(**m.video.model_dump()))
 
 

@@ -48,6 +48,7 @@ class StudyResults:
     views: dict = field(default_factory=dict)          # static view label -> [TestResult]
     ghosts: dict = field(default_factory=dict)         # ghosting protocol name -> [TestResult]
     sweeps: list = field(default_factory=list)
+    sharpen_sweeps: list = field(default_factory=list)   # TestResults: both thesis TAAs per sharpen strength
     agreements: dict = field(default_factory=dict)     # scene -> agreement dict
     references: dict = field(default_factory=dict)     # scene -> Reference (frame 0)
     stats: dict = field(default_factory=dict)

@@ -18,6 +18,7 @@ from references.settings import SE_BOUND_LSB
 from scenes import ResolvedScene
 
 from study.config.profile import Profile, get_profile
+from study.config.protocols import Protocol
 from study.config.techniques import TechniqueConfig
 from study.engine.execute import Executor, Session
 from study.engine.plan import Planner
@@ -77,15 +78,21 @@ class Study:
 
     # -- the whole study ----------------------------------------------------------------------------
     def plan(self, specs: list[str], configs: list[TechniqueConfig], agreement: bool = True,
-             sweep: tuple = (), ghosting: bool = True, final: bool = True):
-        """The study's tests and the tasks it must compute: (plan, scenes, statics, ghosts, sweeps).
+             sweep: tuple = (), ghosting: bool = True, final: bool = True, sharpen: tuple = ()):
+        """The study's tests and the tasks it must compute: (plan, scenes, statics, ghosts, sweeps,
+        sharpen sweeps). `sharpen`: the sharpen sweep's configs (study.config.profile.sharpen_sweep_configs),
+        judged at the thesis's history on the profile's sharpen_sweep_scenes.
         `final`: the study's last round, whose references are final: the video metric's tasks too."""
         scenes = [(spec, load_scene(spec)) for spec in specs]
         protos = [self.profile.static, *self.profile.ghosting]
         planner = Planner(self.ctx, self.ref_settings, self.profile.agreement_samples if agreement else None,
                           {(scene.name, p.name): self.settings_for(scene.name, p.name) for _, scene in scenes for p in protos},
                           self.display_settings, video=self.profile.video, video_final=final)
-        statics, ghosts, sweeps = [], [], []
+        statics, ghosts, sweeps, sharpens = [], [], [], []
+        # at the thesis's history alone; named as the static test, whose references it shares
+        st = self.profile.static
+        sharpen_proto = Protocol(st.name, "static", history=self.profile.thesis_history,
+                                 checkpoints=(self.profile.thesis_history,))
         for spec, scene in scenes:
             w, h = self.resolution(scene)
             # a run keeps, once judged, the frames the report reads (static views, ghosting sliders)
@@ -103,11 +110,14 @@ class Study:
                 proto = self.profile.ghosting[0] if is_animated(scene) else self.profile.static
                 sweeps.append(planner.add_test(spec, scene, proto, list(sweep), w, h, maps="none",
                                                keep="all" if every else "none"))
+            if sharpen and scene.name in self.profile.sharpen_sweep_scenes:
+                sharpens.append(planner.add_test(spec, scene, sharpen_proto, list(sharpen), w, h, maps="none",
+                                                 keep="none"))
             planner.add_agreement(spec, scene, w, h, self.profile.static.name)
-        return planner.plan, scenes, statics, ghosts, sweeps
+        return planner.plan, scenes, statics, ghosts, sweeps, sharpens
 
     def run(self, specs: list[str], configs: list[TechniqueConfig], agreement: bool = True,
-            sweep: tuple = (), ghosting: bool = True) -> StudyResults:
+            sweep: tuple = (), ghosting: bool = True, sharpen: tuple = ()) -> StudyResults:
         """Plan, execute and gather; under the figures' precision rule, again for every test with a
         figure over its tolerance (or only probed), its references at the bound its figures ask for,
         until none is or the finest bound is reached (study.engine.precision)."""
@@ -120,8 +130,8 @@ class Study:
         with Session(self.executor, self.log) as session:     # one cluster for every round
             while True:
                 with code_snapshot():
-                    plan, scenes, statics, ghosts, sweeps = self.plan(specs, configs, agree, sweep, ghosting,
-                                                                      final=settled or not figures)
+                    plan, scenes, statics, ghosts, sweeps, sharpens = self.plan(specs, configs, agree, sweep, ghosting,
+                                                                      final=settled or not figures, sharpen=sharpen)
                 if figures and memo is None:      # the probe's plan: did a study decide from it before?
                     memo = self._decisions(plan, agreement)
                     if memo["replayed"]:
@@ -197,7 +207,8 @@ class Study:
                      "video_computed": sum(1 for v in results.values() if v["kind"] == "video" and v["computed"]),
                      "references_rendered": sum(1 for v in results.values() if v["kind"] == "reference" and v["rendered"]),
                      "tasks": counts}
-        out.stats["runs_cached"] = max(0, sum(len(t.configs) for t in statics + ghosts + sweeps) - out.stats["runs_computed"])
+        out.stats["runs_cached"] = max(0, sum(len(t.configs) for t in statics + ghosts + sweeps + sharpens)
+                                       - out.stats["runs_computed"])
         costs = self._costs(scenes, statics, results)
         for spec, scene in scenes:
             w, h = self.resolution(scene)
@@ -214,6 +225,7 @@ class Study:
         for t in ghosts:
             out.ghosts.setdefault(t.protocol.name, []).append(self._with_drift(self._result(t, results, costs)))
         out.sweeps = [self._with_drift(self._result(t, results, costs)) for t in sweeps]
+        out.sharpen_sweeps = [self._result(t, results, {}) for t in sharpens]
         return out
 
     def _decisions(self, plan, agreement: bool) -> dict:

@@ -16,6 +16,7 @@ from study.engine.results import shown_frames
 from study.reporting import plots
 from study.reporting.encode import display_8bit, exr_bytes, magma, png, slug
 from study.reporting.summaries import Summaries
+from study.reporting.sharpen_sweep import SharpenSweep
 from study.reporting.upscaling import Upscaling
 from study.metrics.uncertainty import pooled
 from study.metrics.video import VERSION as VIDEO_VERSION
@@ -31,7 +32,7 @@ def _state(path: Path) -> list:
     return [st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns]
 
 
-class Report(Summaries, Upscaling):
+class Report(Summaries, Upscaling, SharpenSweep):
     """Artefacts of one study in `out`. Every file is listed in manifest.json with the keys of its
     inputs and its SHA-256; a file whose inputs and content are unchanged is not made again, and
     `finish` removes the files of out/{tables,images,maps,plots} that the previous manifest listed
@@ -349,6 +350,7 @@ def write_study(out: Path, res, configs, summary: dict, start: float) -> None:
     report.reproduction(views, res.ghosts)
     variants = sharpen_variants(configs)
     report.sharpen_test(views, variants)
+    report.sharpen_sweep(res.sharpen_sweeps)
     gt_label = ground_truth.label_of(configs)
     alt = ground_truth.figures(report, views, res.references, gt_label) if res.artefacts is not None else {}
     report.ground_truth(views, alt, gt_label)
