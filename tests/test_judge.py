@@ -136,3 +136,20 @@ def test_runs_keep_only_the_frames_the_report_reads_and_are_remade_when_judged_a
     assert third.stats["runs_computed"] == 1 and third.stats["metrics_computed"] == 1
     assert third.ghosts["ghosting"][0].per_frame["taa_baseline"] == first_cold
     assert files(third.ghosts["ghosting"][0], "taa_baseline")[1] == pruned
+
+
+def test_under_the_figures_rule_a_run_is_made_once_over_every_round_and_pruned_once_settled(tmp_path):
+    """A test going to a finer bound is judged again from its runs kept whole, not re-made (each
+    round re-made every pruned run: 7 run tasks here instead of 4); once settled they are pruned."""
+    from study_fixtures import run_tiny_study, summary
+    s = summary(run_tiny_study(tmp_path, "taa_baseline", "noaa", precision="figures"))
+    assert s["tasks"]["reference"] > 2 * 5            # more than the probe round: finer bounds were asked
+    # one run task per test (static x 2 scenes, cold, warm TAA), each of its runs made once
+    assert s["tasks"]["run"] == 4 and s["runs_computed"] == 2 * 2 + 2 + 1
+    for done in (tmp_path / "cache" / "runs" / "static").glob("*/*/done.json"):
+        rec = json.loads(done.read_text())
+        names = {n for n in rec["files"] if n.startswith("frame_")}
+        # the TAA keeps the frames of its static views, No AA its one frame
+        assert len(names) <= 2 and len(rec.get("pruned", [])) in (0, 14), (done, names)
+        assert all((done.parent / n).exists() for n in names)
+        assert not any((done.parent / n).exists() for n in rec.get("pruned", []))

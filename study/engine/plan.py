@@ -109,20 +109,23 @@ def run_steps(schedule: list, inp) -> list:
 class Planner:
     def __init__(self, ctx: T.Context, ref_settings: dict, agreement_samples: int | None,
                  ref_settings_of: dict | None = None, display_settings: dict | None = None, video=None,
-                 video_final: bool = False):
+                 video_final: bool = False, prune: bool = True):
         """`ref_settings_of`: (scene name, protocol name) -> the references' settings of that test
         where they differ from `ref_settings` (the precision its figures need; study.engine.precision).
         `display_settings`: the references every frame's display transform comes from
         (study.engine.tasks.display_of), `ref_settings` if not given. `video`: the video metric's
         settings (study.config.video.Video); its tasks are planned only with `video_final` (a
-        study's last round), but in every round the runs it will read keep every judged frame."""
+        study's last round), but in every round the runs it will read keep every judged frame.
+        `prune`: a metrics task prunes its runs to their kept frames once judged; without, the runs
+        stay whole for a later round's references (the runner prunes a test's runs once it settles:
+        prune_runs)."""
         from study.engine.store import Store
         self.ctx, self.ref_settings, self.agreement_samples = ctx, dict(ref_settings), agreement_samples
         self.ref_settings_of = dict(ref_settings_of or {})
         self.display_settings = dict(display_settings or ref_settings)
         from study.config.video import Video
         self.video = video if video is not None else Video(metric="none")
-        self.video_final = video_final
+        self.video_final, self.prune = video_final, prune
         self.store = Store(Path(ctx.cache_root))
         self.plan = Plan()
         self._run_task_of: dict = {}     # run key -> key of the run task that makes it
@@ -247,7 +250,7 @@ class Planner:
                     self._reference(spec, scene, t, w, h, s) for t in ts for s in (settings, self.display_settings)))
                 items = [{"label": c.label, "run_folder": test.run_folders[c.label], "run_key": test.run_keys[c.label],
                           "frame_times": test.frame_times[c.label], "maps_for": test.maps_for[c.label],
-                          "keep": test.keep[c.label],
+                          "keep": test.keep[c.label] if self.prune else None,
                           "key": test.metrics_keys[c.label], "folder": test.metrics_folders[c.label]} for c in mine]
                 gkey = task_key("metrics-of", sorted(it["key"] for it in items))
                 self.plan.tasks[gkey] = Task(gkey, "metrics", J.metrics_task,
@@ -290,6 +293,27 @@ class Planner:
         self.plan.tasks[gkey] = Task(gkey, "video", V.video_task, (
             self.ctx, spec, test.width, test.height, items, settings, self.display_settings, video.key_data(),
             test.protocol.kind), deps)
+
+    def prune_runs(self, tests: list, settled) -> int:
+        """Prune the runs of the tests for which `settled((scene, protocol))` holds to the frames they
+        keep: a run several tests read (a shared run) keeps the union of theirs, and only once all of
+        them have settled. Returns the files dropped."""
+        keep: dict = {}
+        for t in self.plan.tests:
+            for label, folder in t.run_folders.items():
+                k = keep.setdefault((folder, t.run_keys[label]), {"frames": set(), "whole": False, "settled": True})
+                k["settled"] &= bool(settled((t.scene, t.protocol.name)))
+                if t.keep[label] is None:
+                    k["whole"] = True
+                else:
+                    k["frames"] |= set(t.keep[label])
+        mine = {(f, t.run_keys[lb]) for t in tests for lb, f in t.run_folders.items()}
+        dropped = 0
+        for (folder, key), k in keep.items():
+            if (folder, key) in mine and k["settled"] and not k["whole"]:
+                with self.store.lock(task_key("run-lock", key)):      # as run_task, which (re)makes it
+                    dropped += self.store.prune(Path(folder), key, {f"frame_{f:04d}.exr" for f in k["frames"]})
+        return dropped
 
     def _run_intact(self, folder: Path, key: str, verify: bool) -> bool:
         """A run whose frames the report reads must be intact too (else it is re-made)."""

@@ -78,7 +78,7 @@ class Study:
 
     # -- the whole study ----------------------------------------------------------------------------
     def plan(self, specs: list[str], configs: list[TechniqueConfig], agreement: bool = True,
-             sweep: tuple = (), ghosting: bool = True, final: bool = True, sharpen: tuple = ()):
+             sweep: tuple = (), ghosting: bool = True, final: bool = True, sharpen: tuple = (), prune: bool = True):
         """The study's tests and the tasks it must compute: (plan, scenes, statics, ghosts, sweeps,
         sharpen sweeps). `sharpen`: the sharpen sweep's configs (study.config.profile.sharpen_sweep_configs),
         judged at the thesis's history on the profile's sharpen_sweep_scenes.
@@ -87,7 +87,7 @@ class Study:
         protos = [self.profile.static, *self.profile.ghosting]
         planner = Planner(self.ctx, self.ref_settings, self.profile.agreement_samples if agreement else None,
                           {(scene.name, p.name): self.settings_for(scene.name, p.name) for _, scene in scenes for p in protos},
-                          self.display_settings, video=self.profile.video, video_final=final)
+                          self.display_settings, video=self.profile.video, video_final=final, prune=prune)
         statics, ghosts, sweeps, sharpens = [], [], [], []
         # at the thesis's history alone; named as the static test, whose references it shares
         st = self.profile.static
@@ -114,6 +114,7 @@ class Study:
                 sharpens.append(planner.add_test(spec, scene, sharpen_proto, list(sharpen), w, h, maps="none",
                                                  keep="none"))
             planner.add_agreement(spec, scene, w, h, self.profile.static.name)
+        self.planner = planner
         return planner.plan, scenes, statics, ghosts, sweeps, sharpens
 
     def run(self, specs: list[str], configs: list[TechniqueConfig], agreement: bool = True,
@@ -131,7 +132,8 @@ class Study:
             while True:
                 with code_snapshot():
                     plan, scenes, statics, ghosts, sweeps, sharpens = self.plan(specs, configs, agree, sweep, ghosting,
-                                                                      final=settled or not figures, sharpen=sharpen)
+                                                                      final=settled or not figures, sharpen=sharpen,
+                                                                      prune=not figures)
                 if figures and memo is None:      # the probe's plan: did a study decide from it before?
                     memo = self._decisions(plan, agreement)
                     if memo["replayed"]:
@@ -162,6 +164,9 @@ class Study:
                         {(t.protocol.name, *k): v for k, v in figures_of(self._result(t, results, {})).items()
                          if k[0] not in self.precision.exempt})
                 finer, judged = decide(now, before, self.levels, self.precision, over, self.drifts)
+                # a settled test's runs drop the frames the report does not read; the others stay
+                # whole, judged again at the finer bound without being re-made
+                self.planner.prune_runs(plan.tests, lambda k: k not in finer)
                 for k in sorted(judged):
                     name, b = f"{k[0]} ({k[1]})", self.bound_of(*k)
                     nxt = f"references again at {self.precision.bound(finer[k]):g} LSB" if k in finer else ""
@@ -180,6 +185,7 @@ class Study:
                     # one more round: the agreements and the video metric alone (the rest is cached)
                     agree, settled = agreement, True
                 self.levels.update(finer)
+        self.planner.prune_runs(self.planner.plan.tests, lambda k: True)
         if memo is not None and not memo["replayed"]:
             memo["store"].save_record(memo["path"], memo["key"], P.to_record(self.levels, tried, over, self.drifts))
         from study.engine.store import Store
