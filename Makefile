@@ -1,5 +1,9 @@
 # The two commands of the README: `make study` and `make test`. Both set up what is missing first.
 PY := .venv/bin/python
+# Every process of a study or of the suite (xdist workers, Dask workers, the CLI's subprocesses)
+# would compile torch, Mitsuba's and Dask's Python from source again where the environment turns
+# bytecode off (PYTHONDONTWRITEBYTECODE=1, as on this project's build machines): written once instead.
+export PYTHONDONTWRITEBYTECODE :=
 STAMP := .venv/.setup-stamp
 
 .PHONY: study test setup clean-cache paper
