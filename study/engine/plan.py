@@ -294,10 +294,10 @@ class Planner:
             self.ctx, spec, test.width, test.height, items, settings, self.display_settings, video.key_data(),
             test.protocol.kind), deps)
 
-    def prune_runs(self, tests: list, settled) -> int:
-        """Prune the runs of the tests for which `settled((scene, protocol))` holds to the frames they
-        keep: a run several tests read (a shared run) keeps the union of theirs, and only once all of
-        them have settled. Returns the files dropped."""
+    def prune_runs(self, settled) -> int:
+        """Prune the runs of the plan's tests for which `settled((scene, protocol))` holds to the frames
+        they keep: a run several tests read (a shared run) keeps the union of theirs, and only once all
+        of them have settled. Returns the files dropped."""
         keep: dict = {}
         for t in self.plan.tests:
             for label, folder in t.run_folders.items():
@@ -307,10 +307,9 @@ class Planner:
                     k["whole"] = True
                 else:
                     k["frames"] |= set(t.keep[label])
-        mine = {(f, t.run_keys[lb]) for t in tests for lb, f in t.run_folders.items()}
         dropped = 0
         for (folder, key), k in keep.items():
-            if (folder, key) in mine and k["settled"] and not k["whole"]:
+            if k["settled"] and not k["whole"]:
                 with self.store.lock(task_key("run-lock", key)):      # as run_task, which (re)makes it
                     dropped += self.store.prune(Path(folder), key, {f"frame_{f:04d}.exr" for f in k["frames"]})
         return dropped

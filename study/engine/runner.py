@@ -166,7 +166,7 @@ class Study:
                 finer, judged = decide(now, before, self.levels, self.precision, over, self.drifts)
                 # a settled test's runs drop the frames the report does not read; the others stay
                 # whole, judged again at the finer bound without being re-made
-                self.planner.prune_runs(plan.tests, lambda k: k not in finer)
+                self.planner.prune_runs(lambda k: k not in finer)
                 for k in sorted(judged):
                     name, b = f"{k[0]} ({k[1]})", self.bound_of(*k)
                     nxt = f"references again at {self.precision.bound(finer[k]):g} LSB" if k in finer else ""
@@ -185,7 +185,7 @@ class Study:
                     # one more round: the agreements and the video metric alone (the rest is cached)
                     agree, settled = agreement, True
                 self.levels.update(finer)
-        self.planner.prune_runs(self.planner.plan.tests, lambda k: True)
+        self.planner.prune_runs(lambda k: True)
         if memo is not None and not memo["replayed"]:
             memo["store"].save_record(memo["path"], memo["key"], P.to_record(self.levels, tried, over, self.drifts))
         from study.engine.store import Store
