@@ -29,7 +29,8 @@ from . import settings as S
 from .exr import read_exr, write_exr
 from .render import Reference, render_reference
 
-_CODE_FILES = ("shading/surface.py", "shading/frame.py", "references/render.py", "references/settings.py",
+_CODE_FILES = ("shading/surface.py", "shading/frame.py", "references/render.py", "references/estimates.py",
+               "references/settings.py",
                "references/tracer.py", "references/mitsuba_scene.py", "display/__init__.py")
 
 
@@ -83,7 +84,8 @@ class ReferenceCache:
             return Reference(img, se, int(h["taa_spp"]), int(h["taa_passes"]), float(h["taa_seconds"]),
                              float(h["taa_noise_psnr_db"]), key, spp_map=spp, display_stderr=dse,
                              bound_lsb=float(h["taa_bound_lsb"]), rounds=int(h["taa_rounds"]), _history=history,
-                             display_floor=floor, half_delta=half, spp_needed=int(h.get("taa_spp_needed", 0)))
+                             display_floor=floor, half_delta=half, spp_needed=int(h.get("taa_spp_needed", 0)),
+                             held_out=h.get("taa_held_out") == "1")
         except Exception as exc:
             self.log(f"reference cache: {path} is corrupt ({exc}); removing it and rendering again")
             path.unlink(missing_ok=True)
@@ -97,7 +99,7 @@ class ReferenceCache:
                   "taa_spp_mean": float(ref.spp_mean), "taa_spp_max": int(ref.spp_max),
                   "taa_se_p999_lsb": float(ref.se_p999_lsb), "taa_se_max_lsb": float(ref.se_max_lsb),
                   "taa_over_bound": int(ref.over_bound), "taa_floor_bound": int(ref.floor_bound),
-                  "taa_spp_needed": int(ref.spp_needed),
+                  "taa_spp_needed": int(ref.spp_needed), "taa_held_out": "1" if ref.held_out else "0",
                   "taa_code": code_version(),
                   "taa_convergence": json.dumps([[int(round(a)), round(float(b), 4), round(float(c), 3),
                                                   round(float(d), 3)] for a, b, c, d in ref.noise_history])}
@@ -110,24 +112,25 @@ class ReferenceCache:
         write_exr(path, chans, header)
 
     def has(self, scene: ResolvedScene, t: int, width: int, height: int, *, se_bound_lsb=S.SE_BOUND_LSB,
-            target_noise_db=S.TARGET_NOISE_DB, spp_per_pass=2) -> bool:
+            target_noise_db=S.TARGET_NOISE_DB, spp_per_pass=2, held_out=False) -> bool:
         """Whether the reference `get` would return is in the cache (not verified)."""
         return self.path(scene, self.key(scene, t, width, height, bound_lsb=se_bound_lsb, target=target_noise_db,
-                                         spp_per_pass=spp_per_pass)).exists()
+                                         spp_per_pass=spp_per_pass, held_out=bool(held_out))).exists()
 
     def get(self, scene: ResolvedScene, t: int, width: int, height: int, *, se_bound_lsb=S.SE_BOUND_LSB,
-            target_noise_db=S.TARGET_NOISE_DB, spp_per_pass=2, progress=None) -> tuple[Reference, bool]:
+            target_noise_db=S.TARGET_NOISE_DB, spp_per_pass=2, held_out=False, progress=None) -> tuple[Reference, bool]:
         """(reference, was_cached): every pixel's display-domain SE <= se_bound_lsb (8-bit LSB)
         and the mean noise >= target_noise_db, or the pixels that hit the sample cap counted."""
         key = self.key(scene, t, width, height, bound_lsb=se_bound_lsb, target=target_noise_db,
-                       spp_per_pass=spp_per_pass)
+                       spp_per_pass=spp_per_pass, held_out=bool(held_out))
         path = self.path(scene, key)
         if path.exists():
             ref = self._read(path, key, (height, width, 3))
             if ref is not None:
                 return ref, True
         ref = render_reference(scene, t, width, height, se_bound_lsb=se_bound_lsb,
-                               target_noise_db=target_noise_db, spp_per_pass=spp_per_pass, progress=progress)
+                               target_noise_db=target_noise_db, spp_per_pass=spp_per_pass, held_out=bool(held_out),
+                               progress=progress)
         ref.key = key
         self._write(path, ref, scene, t)
         return ref, False

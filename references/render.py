@@ -41,14 +41,21 @@ channel, 0.5 LSB of 8 bits by default.
    counted (`over_bound`), never hidden. If the mean noise (the secondary figure,
    10 log10(1 / mean SE^2)) is still below `target_noise_db`, the bound is tightened.
 
-Why stopping on the data leaves the mean (almost) unbiased: each round's new samples are
-independent of everything drawn before and have mean mu, so for a pixel's sample sum S and count
-M (a stopping time: each decision uses only samples already drawn) Wald's identities give
-E[S - M mu] = 0 and E[(S - M mu)^2] = E[sum of the rounds' variances]. The plain mean's bias is
-E[(S - M mu)(1/M - E[1/M])], so by Cauchy-Schwarz
-    |E[S / M] - mu| <= sqrt(E[(S - M mu)^2]) sd(1/M)  ~  SE x (coefficient of variation of M),
-a fraction of the pixel's own SE, which the bound keeps below 0.5 LSB; M varies little between
-seeds because the last decision is made from at least a quarter of the final count.
+Why stopping on the data biases the mean, and the estimator that does not: each round's new
+samples are independent of everything drawn before and have mean mu, so for a pixel's sample sum
+S and count M (a stopping time: each decision uses only samples already drawn) Wald's identities
+give E[S - M mu] = 0, and the plain mean's bias is E[(S - M mu)(1/M - E[1/M])]: by Cauchy-Schwarz
+at most ~ SE x (coefficient of variation of M), a fraction of the pixel's own SE. It is not zero
+where the samples' spread moves with their value (a pixel with more bright hair hits, or whose
+mean sits on a flatter part of the display curve, stops sooner): measured, -0.039 SE on
+hairball_lit at 8 LSB, and the study's jackknifed MSE of a blurred image 1.2 % high
+(scripts/reference_bias.py; tests/test_reference_held_out.py shows it on Bernoulli pixels).
+`held_out=True` (what the figures' rule renders, study.config.precision) makes every decision
+from a deciding share of the samples (half the pilot's passes, a quarter of the replicates,
+references.estimates) and reports the mean of the rest, whose counts are then a function of
+samples independent of its own: unbiased, exactly, and so are its halves. The per-pixel bound is
+then on the held-out mean's SE as the deciding share predicts it, and the reported SE is the
+held-out samples' own spread.
 tests/test_reference_adaptive.py measures the result against uniform 16384- and 65536-spp
 references (an edge scene, 0.05-px white slivers on black) and the reported SE against a second
 seed. What no rule that looks only at samples sees: a feature well under 1/8 of a pixel (the
@@ -69,6 +76,7 @@ from display import DisplayTransform
 from scenes import ResolvedScene
 from shading import frame_geometry
 
+from . import estimates as E
 from . import settings as S
 from .mitsuba_scene import path_integrator, path_scene
 from .tracer import _PixelTracer
@@ -100,6 +108,7 @@ class Reference:
     display_floor: np.ndarray | None = None    # (H, W, 3) the unseen-feature part of display_stderr
     half_delta: np.ndarray | None = None       # (H, W, 3) linear: half A = image + delta, B = image - delta
     spp_needed: int = 0     # what the worst pixel over the bound at the cap would take (0: none)
+    held_out: bool = False  # the value is the mean of samples no stopping decision saw
     _history: list = field(default_factory=list, repr=False)
 
     @property
@@ -148,129 +157,19 @@ class Reference:
         return int(np.sum(self.se_lsb > self.bound_lsb * (1 + 1e-5)))   # float32 storage slack
 
 
-def _cov_of_mean(reps: np.ndarray) -> np.ndarray:
-    """(K, 3, 3) covariance of the mean of K sets of R independent estimates reps (K, R, 3)."""
-    r = reps.shape[1]
-    dev = reps - reps.mean(axis=1, keepdims=True)
-    return np.einsum("kri,krj->kij", dev, dev) / ((r - 1) * r)
-
-
-class _Estimates:
-    """Per pixel: the pilot's mean and its covariance (from the spread of its passes), and for
-    the pixels that get more samples, R replicate sums (`slot` maps a pixel to its row). A pixel's
-    mean is the plain mean of all its samples; `cov` is the covariance of that mean."""
-
-    def __init__(self, pilot: np.ndarray, spp_per_pass: int, replicates: int):
-        """pilot (npix, K, 3): K independent pilot estimates (means of spp_per_pass samples)."""
-        npix, k = pilot.shape[:2]
-        self.r = replicates
-        self.mp = k * spp_per_pass                    # pilot samples per pixel
-        self.pilot_mean = pilot.mean(axis=1, dtype=np.float64)
-        self.pilot_cov = np.zeros((npix, 3, 3))
-        self.varies = np.flatnonzero(np.any(pilot.max(axis=1) != pilot.min(axis=1), axis=-1))
-        self.pilot_cov[self.varies] = _cov_of_mean(pilot[self.varies].astype(np.float64))
-        self.mean, self.cov = self.pilot_mean.copy(), self.pilot_cov.copy()
-        self.pilot_half = pilot[:, :k // 2].mean(axis=1, dtype=np.float64)   # passes 0..K/2-1
-        self.m = np.zeros(npix, np.int64)             # samples per replicate after the pilot
-        self.slot = np.full(npix, -1, np.int64)
-        self.sums = np.zeros((0, replicates, 3))
-
-    @property
-    def spp(self) -> np.ndarray:
-        return self.mp + self.r * self.m
-
-    def add(self, pix: np.ndarray, a: int, sums: np.ndarray) -> None:
-        """sums (K, R, 3): each replicate's sum over its a new samples, for pixels pix."""
-        new = pix[self.slot[pix] < 0]
-        if len(new):
-            self.slot[new] = len(self.sums) + np.arange(len(new))
-            self.sums = np.concatenate([self.sums, np.zeros((len(new), self.r, 3))])
-        rows = self.slot[pix]
-        self.sums[rows] += sums
-        self.m[pix] += a
-        reps = self.sums[rows] / self.m[pix, None, None]
-        ma = (self.r * self.m[pix]).astype(np.float64)
-        w = (ma / (self.mp + ma))[:, None]           # the replicates' share of the samples
-        self.mean[pix] = (1 - w) * self.pilot_mean[pix] + w * reps.mean(axis=1)
-        self.cov[pix] = ((1 - w) ** 2)[:, :, None] * self.pilot_cov[pix] + (w ** 2)[:, :, None] * _cov_of_mean(reps)
-
-    def half_delta(self) -> np.ndarray:
-        """(npix, 3) A - mean, where A is the plain mean of one half of every pixel's samples (the
-        first K/2 pilot passes and the first R/2 replicates) and B, the other half, is 2 mean - A.
-        A and B are independent estimates of the pixel, each with twice the mean's variance."""
-        a = self.pilot_half * (self.mp / 2)
-        rows = np.flatnonzero(self.slot >= 0)
-        a[rows] += self.sums[self.slot[rows], : self.r // 2].sum(axis=1)
-        return a / (self.spp[:, None] / 2) - self.mean
-
-    def linear_se(self) -> np.ndarray:
-        return np.sqrt(np.maximum(np.diagonal(self.cov, axis1=1, axis2=2), 0.0))
-
-
-def _display_se(disp: DisplayTransform, mean: np.ndarray, cov: np.ndarray) -> np.ndarray:
-    """SE of the display value of the mean, per channel: sqrt(J cov J^T), J at the mean."""
-    base = disp.encode(mean)
-    jac = np.empty((len(mean), 3, 3))
-    for k in range(3):   # forward differences: the tone map is clamped at 0, so stay on its right
-        h = 1e-7 + 1e-5 * np.abs(mean[:, k])
-        x = mean.copy()
-        x[:, k] += h
-        jac[:, :, k] = (disp.encode(x) - base) / h[:, None]
-    var = np.einsum("pck,pkl,pcl->pc", jac, cov, jac)
-    return np.sqrt(np.maximum(var, 0.0))
-
-
-def _dilate(mask: np.ndarray) -> np.ndarray:
-    out = mask.copy()
-    out[1:] |= mask[:-1]
-    out[:-1] |= mask[1:]
-    col = out.copy()
-    out[:, 1:] |= col[:, :-1]
-    out[:, :-1] |= col[:, 1:]
-    return out
-
-
-def _window(a: np.ndarray, op) -> np.ndarray:
-    """op (np.minimum / np.maximum) over each pixel's 3x3 window of a (H, W, C), edges clamped."""
-    out = a.copy()
-    out[1:] = op(out[1:], a[:-1])
-    out[:-1] = op(out[:-1], a[1:])
-    col = out.copy()
-    out[:, 1:] = op(out[:, 1:], col[:, :-1])
-    out[:, :-1] = op(out[:, :-1], col[:, 1:])
-    return out
-
-
-def _unseen_floor(disp: DisplayTransform, mean: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-                  m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(display, linear) per-channel floor on the SE of pixels whose 3x3 window holds sample
-    values lo..hi: the error if one of the pixel's m samples had been such a value, i.e. a
-    feature covering 1/m of it that every sample missed (see the module docstring)."""
-    base = disp.encode(mean)
-    up, down = (hi - mean) / m[:, None], (lo - mean) / m[:, None]
-    d = np.maximum(np.abs(disp.encode(mean + up) - base), np.abs(disp.encode(mean + down) - base))
-    return d, np.maximum(np.abs(up), np.abs(down))
-
-
-def _samples_needed(spp: np.ndarray, se_spread: np.ndarray, se_floor: np.ndarray, bound: float) -> np.ndarray:
-    """Samples for the bound: SE ~ 1/sqrt(M) for the spread (a ceiling), ~ 1/M for the floor."""
-    return np.maximum(spp * (se_spread / bound) ** 2, spp * (se_floor / bound))
-
-
-def _noise_db(dse: np.ndarray) -> float:
-    mse = float(np.mean(dse ** 2))
-    return float("inf") if mse == 0 else 10 * math.log10(1.0 / mse)
-
-
 def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
                      se_bound_lsb: float = S.SE_BOUND_LSB, target_noise_db: float = S.TARGET_NOISE_DB, spp_per_pass: int = 4,
                      min_passes: int = 4, replicates: int = 32, max_spp: int = 1 << 16, seed: int = 0,
-                     progress: Callable[[int, float], None] | None = None) -> Reference:
+                     held_out: bool = False, progress: Callable[[int, float], None] | None = None) -> Reference:
     """Reference of frame t: a pilot of `min_passes` sets of `spp_per_pass` at every pixel, then
-    rounds of `replicates` independent sets per pixel that needs them (see the module docstring)."""
+    rounds of `replicates` independent sets per pixel that needs them (see the module docstring);
+    `held_out`: the value is the mean of samples no decision saw (references.estimates)."""
     if min_passes < 2 or replicates < 2 or min_passes % 2 or replicates % 2:
         raise ReferenceError(f"min_passes and replicates must be even and >= 2 (the noise is estimated "
                              f"from them, and the reference is split into two halves), got {min_passes}, {replicates}")
+    if held_out and (min_passes % 4 or replicates % 8):
+        raise ReferenceError(f"held_out needs min_passes a multiple of 4 and replicates of 8 (a deciding share, "
+                             f"and two halves of the rest), got {min_passes}, {replicates}")
     if se_bound_lsb <= 0 or spp_per_pass < 1 or spp_per_pass & (spp_per_pass - 1):
         raise ReferenceError(f"se_bound_lsb must be > 0 and spp_per_pass a power of two (a set is a whole "
                              f"Sobol' net), got {se_bound_lsb}, {spp_per_pass}")
@@ -287,48 +186,62 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
         mscene, integ = path_scene(scene, t), path_integrator(scene.desc.path_max_depth)
     else:
         geo = frame_geometry(scene, t)
+    tracer = _PixelTracer(scene, cam, path, mscene, integ, geo)
+    return converge(tracer, width, height, f"scene {scene.name!r} frame {t}", se_bound_lsb=se_bound_lsb,
+                    target_noise_db=target_noise_db, spp_per_pass=spp_per_pass, min_passes=min_passes,
+                    replicates=replicates, max_spp=max_spp, seed=seed, held_out=held_out, progress=progress)
+
+
+def converge(tracer, width: int, height: int, what: str, *, se_bound_lsb: float, target_noise_db: float,
+             spp_per_pass: int, min_passes: int, replicates: int, max_spp: int, seed: int, held_out: bool,
+             progress=None) -> Reference:
+    """The adaptive loop over any tracer whose `chunked(pix, r, a, rng)` yields (pixels, their r
+    set sums (n, r, 3), each set's smallest and largest sample (n, r, 3) each)."""
     npix, r = width * height, replicates
     start = time.perf_counter()
     history = []
 
-    def record(est, dse):
-        db = _noise_db(dse)
+    def record(dse):
+        db = E.noise_db(dse)
         spp = float(est.spp.mean())
         history.append((spp, time.perf_counter() - start, db, float(dse.max() / LSB)))
         if progress:
             progress(int(round(spp)), db)
 
-    tracer = _PixelTracer(scene, cam, path, mscene, integ, geo)
     # Pilot: min_passes independent sets (nets) of spp_per_pass at every pixel, which also
     # give each pixel's smallest and largest sample (the unseen-feature floor below).
     pilot = np.empty((npix, min_passes, 3), np.float32)
-    lo, hi = np.empty((npix, 3)), np.empty((npix, 3))
+    lo, hi = np.empty((npix, 3)), np.empty((npix, 3))          # the deciding samples' extremes
+    lo_all, hi_all = np.empty((npix, 3)), np.empty((npix, 3))  # every sample's (the reported floor)
     for g, sums, glo, ghi in tracer.chunked(np.arange(npix), min_passes, spp_per_pass,
                                             np.random.default_rng([seed, 8])):
         if not np.all(np.isfinite(sums)):
-            raise ReferenceError(f"scene {scene.name!r} frame {t}: the pilot produced NaN/Inf")
-        pilot[g], lo[g], hi[g] = sums / spp_per_pass, glo, ghi
-    est = _Estimates(pilot, spp_per_pass, r)
+            raise ReferenceError(f"{what}: the pilot produced NaN/Inf")
+        pilot[g] = sums / spp_per_pass
+        dp = slice(0, min_passes // 2) if held_out else slice(0, min_passes)
+        lo[g], hi[g] = glo[:, dp].min(axis=1), ghi[:, dp].max(axis=1)
+        lo_all[g], hi_all[g] = glo.min(axis=1), ghi.max(axis=1)
+    est = E.Estimates(pilot, spp_per_pass, r, held_out)
     del pilot
     # the current mean's transform, re-derived every round: one pass of a few samples can be far
     # off (thin bright lines on black: 4.4x the exposure), and the bound must hold in the study's
-    disp = DisplayTransform.from_reference(est.mean.reshape(height, width, 3))
+    disp = DisplayTransform.from_reference(est.dmean.reshape(height, width, 3))
     dse_s = np.zeros((npix, 3))           # from the spread of the samples
-    dse_s[est.varies] = _display_se(disp, est.mean[est.varies], est.cov[est.varies])
-    floor_d, floor_l = np.zeros((npix, 3)), np.zeros((npix, 3))
+    dse_s[est.varies] = E.display_se(disp, est.dmean[est.varies], est.dcov[est.varies])
+    floor_d = np.zeros((npix, 3))
 
     def update_floor(where: np.ndarray):
-        wlo = _window(lo.reshape(height, width, 3), np.minimum).reshape(npix, 3)[where]
-        whi = _window(hi.reshape(height, width, 3), np.maximum).reshape(npix, 3)[where]
-        floor_d[where], floor_l[where] = _unseen_floor(disp, est.mean[where], wlo, whi, est.spp[where])
+        wlo = E.window(lo.reshape(height, width, 3), np.minimum).reshape(npix, 3)[where]
+        whi = E.window(hi.reshape(height, width, 3), np.maximum).reshape(npix, 3)[where]
+        floor_d[where] = E.unseen_floor(disp, est.dmean[where], wlo, whi, est.spp_estimate[where])[0]
 
-    def contrast() -> np.ndarray:          # pixels whose 3x3 window holds more than one value
-        return np.flatnonzero(np.any(_window(hi.reshape(height, width, 3), np.maximum) >
-                                     _window(lo.reshape(height, width, 3), np.minimum), axis=-1).ravel())
+    def contrast(lo, hi) -> np.ndarray:    # pixels whose 3x3 window holds more than one value
+        return np.flatnonzero(np.any(E.window(hi.reshape(height, width, 3), np.maximum) >
+                                     E.window(lo.reshape(height, width, 3), np.minimum), axis=-1).ravel())
 
-    update_floor(contrast())
+    update_floor(contrast(lo, hi))
     dse = np.maximum(dse_s, floor_d)
-    record(est, dse)
+    record(dse)
 
     cap = max((max_spp - est.mp) // r, 1)         # samples per replicate
     bound = se_bound_lsb * LSB
@@ -338,9 +251,9 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
         worst_s, worst_f = dse_s.max(axis=-1), floor_d.max(axis=-1)
         worst = np.maximum(worst_s, worst_f)
         over = (worst > bound) & (est.m < cap)
-        spp = est.spp
-        need = _samples_needed(spp, worst_s, worst_f, bound) * _MARGIN
-        want = (np.ceil(need) - spp) / r      # per replicate
+        spp = est.spp_estimate
+        need = E.samples_needed(spp, worst_s, worst_f, bound) * _MARGIN
+        want = (np.ceil(need) - spp) / est.re      # per replicate
         if rounds == 0:
             # A pilot spread of min_passes estimates is a rough noise estimate: every pixel
             # whose samples vary gets one set of replicates (R - 1 degrees of freedom).
@@ -366,35 +279,51 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
         for a in np.unique(add):          # one set size per group of pixels
             for g, sums, glo, ghi in tracer.chunked(pix[add == a], r, int(a), rng):
                 if not np.all(np.isfinite(sums)):
-                    raise ReferenceError(f"scene {scene.name!r} frame {t}: round {rounds} produced NaN/Inf")
+                    raise ReferenceError(f"{what}: round {rounds} produced NaN/Inf")
                 est.add(g, int(a), sums)
-                lo[g], hi[g] = np.minimum(lo[g], glo), np.maximum(hi[g], ghi)
-        dse_s[pix] = _display_se(disp, est.mean[pix], est.cov[pix])
+                lo[g] = np.minimum(lo[g], glo[:, est.dr].min(axis=1))
+                hi[g] = np.maximum(hi[g], ghi[:, est.dr].max(axis=1))
+                lo_all[g], hi_all[g] = np.minimum(lo_all[g], glo.min(axis=1)), np.maximum(hi_all[g], ghi.max(axis=1))
+        dse_s[pix] = E.display_se(disp, est.dmean[pix], est.dcov[pix])
         # the floor moves where a pixel or a neighbour got samples (new extremes, or more samples)
         touched = np.zeros(npix, bool)
         touched[pix] = True
-        update_floor(np.flatnonzero(_dilate(touched.reshape(height, width)).ravel()))
-        now = DisplayTransform.from_reference(est.mean.reshape(height, width, 3))
+        update_floor(np.flatnonzero(E.dilate(touched.reshape(height, width)).ravel()))
+        now = DisplayTransform.from_reference(est.dmean.reshape(height, width, 3))
         if now != disp:                   # (to 3 digits) every pixel's display error moves with it
             disp = now
-            noisy = np.flatnonzero(np.any(np.diagonal(est.cov, axis1=1, axis2=2) > 0, axis=-1))
+            noisy = np.flatnonzero(np.any(np.diagonal(est.dcov, axis1=1, axis2=2) > 0, axis=-1))
             dse_s[:] = 0.0
-            dse_s[noisy] = _display_se(disp, est.mean[noisy], est.cov[noisy])
-            update_floor(contrast())
+            dse_s[noisy] = E.display_se(disp, est.dmean[noisy], est.dcov[noisy])
+            update_floor(contrast(lo, hi))
         dse = np.maximum(dse_s, floor_d)
         rounds += 1
-        record(est, dse)
+        record(dse)
 
+    # What is reported is the estimate's own: its spread, and the floor from every sample's extremes
+    mean, cov = est.estimate()
+    disp = DisplayTransform.from_reference(mean.reshape(height, width, 3))
+    dse = np.zeros((npix, 3))
+    noisy = np.flatnonzero(np.any(np.diagonal(cov, axis1=1, axis2=2) > 0, axis=-1))
+    dse[noisy] = E.display_se(disp, mean[noisy], cov[noisy])
+    spread = dse.copy()
+    floor_d, floor_l = np.zeros((npix, 3)), np.zeros((npix, 3))
+    where = contrast(lo_all, hi_all)
+    wlo = E.window(lo_all.reshape(height, width, 3), np.minimum).reshape(npix, 3)[where]
+    whi = E.window(hi_all.reshape(height, width, 3), np.maximum).reshape(npix, 3)[where]
+    floor_d[where], floor_l[where] = E.unseen_floor(disp, mean[where], wlo, whi, est.spp_estimate[where])
+    dse = np.maximum(dse, floor_d)
     spp_map = est.spp.reshape(height, width)
     b0 = se_bound_lsb * LSB
     missed = dse.max(axis=-1) > b0 * (1 + 1e-5)
-    needed = _samples_needed(est.spp, dse_s.max(axis=-1), floor_d.max(axis=-1), b0)[missed]
-    lin_se = np.maximum(est.linear_se(), floor_l)
-    return Reference(est.mean.reshape(height, width, 3).astype(np.float32),
+    needed = (E.samples_needed(est.spp_estimate, spread.max(axis=-1), floor_d.max(axis=-1), b0)[missed]
+              * (est.spp[missed] / est.spp_estimate[missed]))
+    lin_se = np.maximum(E.linear_se(cov), floor_l)
+    return Reference(mean.reshape(height, width, 3).astype(np.float32),
                      lin_se.reshape(height, width, 3).astype(np.float32),
-                     int(round(spp_map.mean())), min_passes, time.perf_counter() - start, _noise_db(dse),
+                     int(round(spp_map.mean())), min_passes, time.perf_counter() - start, E.noise_db(dse),
                      spp_map=spp_map.astype(np.int32), display_stderr=dse.reshape(height, width, 3).astype(np.float32),
                      bound_lsb=float(se_bound_lsb), rounds=rounds, _history=history,
                      display_floor=floor_d.reshape(height, width, 3).astype(np.float32),
-                     half_delta=est.half_delta().reshape(height, width, 3).astype(np.float32),
-                     spp_needed=int(np.ceil(needed.max())) if len(needed) else 0)
+                     half_delta=est.half_delta(mean).reshape(height, width, 3).astype(np.float32),
+                     spp_needed=int(np.ceil(needed.max())) if len(needed) else 0, held_out=held_out)

@@ -60,8 +60,8 @@ class _PixelTracer:
         self.sampler = mi.load_dict({"type": "independent"}) if path else None
 
     def sets(self, pix: np.ndarray, r: int, a: int, seed: int):
-        """For each pixel, r independent sets of a samples: their sums (len(pix), r, 3), and the
-        smallest and largest sample of all r a, per channel (len(pix), 3) each."""
+        """For each pixel, r independent sets of a samples: their sums (len(pix), r, 3), and each
+        set's smallest and largest sample, per channel (len(pix), r, 3) each."""
         n = len(pix) * r * a
         if a & (a - 1) or a > 1 << _NET_BITS:
             raise ValueError(f"a set holds a power of two samples up to 2^{_NET_BITS}, got {a}")
@@ -88,12 +88,11 @@ class _PixelTracer:
         chans = [col[k] + zero for k in range(3)]
         dr.eval(chans)                    # one tracing kernel for the three channels, not one each
         sums = [dr.block_sum(mi.Float64(c), a) for c in chans]   # float64: sets of up to 2^16
-        lo = [dr.block_reduce(dr.ReduceOp.Min, c, r * a) for c in chans]
-        hi = [dr.block_reduce(dr.ReduceOp.Max, c, r * a) for c in chans]
+        lo = [dr.block_reduce(dr.ReduceOp.Min, c, a) for c in chans]
+        hi = [dr.block_reduce(dr.ReduceOp.Max, c, a) for c in chans]
         dr.eval(sums, lo, hi)
-        sums = np.stack([np.asarray(c, np.float64) for c in sums], -1).reshape(len(pix), r, 3)
-        return sums, np.stack([np.asarray(c, np.float64) for c in lo], -1), \
-            np.stack([np.asarray(c, np.float64) for c in hi], -1)
+        return tuple(np.stack([np.asarray(c, np.float64) for c in x], -1).reshape(len(pix), r, 3)
+                     for x in (sums, lo, hi))
 
     def chunked(self, pix: np.ndarray, r: int, a: int, rng: np.random.Generator):
         """sets() over pixels pix in launches of at most _CHUNK_RAYS rays."""

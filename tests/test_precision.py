@@ -65,14 +65,16 @@ def test_precision_levels_and_settings():
     p = Precision(start_bound_lsb=2.0, finest_bound_lsb=0.125)
     assert p.levels() == 4 and p.bound(3) == 0.25
     base = {"se_bound_lsb": 0.5, "target_noise_db": 60.0}
-    assert p.settings(base, 2) == {"se_bound_lsb": 0.5, "target_noise_db": 0.0}
+    assert p.settings(base, 2) == {"se_bound_lsb": 0.5, "target_noise_db": 0.0, "held_out": True}
     assert Precision(rule="per_pixel").settings(base, 3) == base
 
 
-def test_reference_halves_are_independent_halves_of_its_samples():
+@pytest.mark.parametrize("held_out", [False, True])
+def test_reference_halves_are_independent_halves_of_its_samples(held_out):
     from references.render import render_reference
     from study.engine.tasks import load_scene
-    ref = render_reference(load_scene("pipe"), 0, 64, 36, se_bound_lsb=1.0, target_noise_db=0)
+    ref = render_reference(load_scene("pipe"), 0, 64, 36, se_bound_lsb=1.0, target_noise_db=0, held_out=held_out)
+    assert ref.held_out == held_out
     a, b = ref.halves()
     assert np.abs((a + b) / 2 - ref.image).max() < 1e-6
     noisy = ref.stderr > 1e-6
@@ -233,7 +235,7 @@ def test_one_display_transform_per_frame_at_every_precision(tmp_path):
     p = Precision()
     base = {"se_bound_lsb": 0.5, "target_noise_db": 60.0}
     disp = p.display_settings(base)
-    assert disp == {"se_bound_lsb": 8.0, "target_noise_db": 0.0}
+    assert disp == {"se_bound_lsb": 8.0, "target_noise_db": 0.0, "held_out": True}
     proto = Protocol("static", "static", history=4, checkpoints=(4,))
     fx = [TechniqueConfig.parse("FXAA=fxaa")]
     keys = []

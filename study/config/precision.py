@@ -41,11 +41,12 @@ class Precision:
     def display_settings(self, base: dict) -> dict:
         """The reference a frame's display transform comes from, under either rule: the probe's
         (study.engine.tasks.display_of)."""
-        return {**base, "se_bound_lsb": self.start_bound_lsb, "target_noise_db": 0.0}
+        return {**base, "se_bound_lsb": self.start_bound_lsb, "target_noise_db": 0.0, "held_out": True}
 
     def settings(self, base: dict, level: int) -> dict:
         """A test's reference settings at a level. The mean-noise target is the per-pixel rule's;
-        under the figures' rule the figures decide."""
+        under the figures' rule the figures decide, from references whose values no stopping
+        decision saw (references.estimates: else the figures drift with the bound)."""
         if self.rule == "per_pixel":
             return dict(base)
-        return {**base, "se_bound_lsb": self.bound(level), "target_noise_db": 0.0}
+        return {**base, "se_bound_lsb": self.bound(level), "target_noise_db": 0.0, "held_out": True}

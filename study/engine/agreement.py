@@ -91,7 +91,7 @@ def _interior(ids: np.ndarray) -> np.ndarray:
 
 def check_agreement(scene: ResolvedScene, width: int, height: int, *, frame: int = 0, samples: int = 256,
                     cache: ReferenceCache | None = None, target_noise_db: float = S.TARGET_NOISE_DB,
-                    se_bound_lsb: float = S.SE_BOUND_LSB, progress: bool = True,
+                    se_bound_lsb: float = S.SE_BOUND_LSB, held_out: bool = False, progress: bool = True,
                     display: DisplayTransform | None = None) -> Agreement:
     """`display`: the transform both are judged under (a study's: study.engine.tasks.display_of);
     by default the reference's own."""
@@ -113,7 +113,7 @@ def check_agreement(scene: ResolvedScene, width: int, height: int, *, frame: int
 
     bar = tqdm(desc=f"{scene.name}: reference", unit="spp", disable=not progress, leave=False, mininterval=1.0)
     ref, cached = cache.get(scene, frame, width, height, target_noise_db=target_noise_db,
-                            se_bound_lsb=se_bound_lsb, progress=lambda spp, db: (bar.update(spp - bar.n), bar.set_postfix(noise_db=f"{db:.1f}")))
+                            se_bound_lsb=se_bound_lsb, held_out=held_out, progress=lambda spp, db: (bar.update(spp - bar.n), bar.set_postfix(noise_db=f"{db:.1f}")))
     bar.close()
 
     disp = display or DisplayTransform.from_reference(ref.image)
