@@ -164,11 +164,11 @@ def test_each_jod_is_the_jackknife_of_the_reference_and_its_halves_recomputed(st
                 ch = store.read_image(folder, f"frame_{f:04d}.exr", run)
                 frames[f] = (np.stack([ch[c] for c in "RGB"], -1), run["output_space"])
     assert len(frames) == 4
-    settings = {"se_bound_lsb": 2.0, "target_noise_db": 0.0}
+    settings = {"se_bound_lsb": 2.0, "target_noise_db": 0.0}     # the per-pixel rule: all samples
     x8, r8 = [], []
     for f in range(4):
         ref = cache.get(scene, f, 40, 24, **settings)[0]
-        probe = cache.get(scene, f, 40, 24, se_bound_lsb=8.0, target_noise_db=0.0)[0]
+        probe = cache.get(scene, f, 40, 24, se_bound_lsb=8.0, target_noise_db=0.0, held_out=True)[0]   # the probe: held out
         disp = DisplayTransform.from_reference(probe.image)
         x8.append(disp.output(*frames[f])[2])
         r8.append(disp.to_8bit(ref.image))
