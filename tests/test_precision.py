@@ -272,6 +272,18 @@ def test_decide_refines_each_test_on_its_own_and_leaves_a_settled_one_alone():
     assert judged == {B} and over[A] == [] and drifts[A][f] == 0.0
 
 
+def test_a_test_within_tolerance_at_the_probe_settles_there_unless_confirm_asks_for_a_second_bound():
+    from study.engine.precision import decide
+    A, f = ("s", "static"), ("static", "X", 8, "psnr")
+    for confirm, want in ((False, {}), (True, {A: 1})):
+        over: dict = {}
+        finer, judged = decide({A: {f: (40.0, 0.009)}}, {}, {}, Precision(confirm=confirm), over, {})
+        assert judged == {A} and over[A] == [] and finer == want, confirm
+    # over its tolerance at the probe: refined either way
+    finer, _ = decide({A: {f: (40.0, 0.011)}}, {}, {}, Precision(), {}, {})
+    assert finer == {A: 1}
+
+
 @pytest.mark.long(seconds=25)
 def test_a_study_of_the_same_tasks_replays_the_precision_decisions(tmp_path, monkeypatch):
     """A no-op study plans its probe and its final round only (the rounds between are the earlier

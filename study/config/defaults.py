@@ -34,7 +34,7 @@ DEFAULT_TECHNIQUES_PROFILE = "quick"
 # test's references probed at the start bound, then rendered at the bound the figures ask for, down
 # to the finest. 8 LSB: a probe costs a few times the pilot's 8 samples per pixel.
 PRECISION = {"rule": "figures", "psnr_db": 0.01, "ssim": 1e-4, "flip": 1e-4, "relative": 0.0023, "relmse": 0.01,
-             "start_bound_lsb": 8.0, "finest_bound_lsb": 0.125}
+             "start_bound_lsb": 8.0, "finest_bound_lsb": 0.125, "confirm": False}
 # The perceptual video metric (study.metrics.video): ColorVideoVDP on cvvdp's 24-inch full-HD
 # office monitor (200 cd/m^2, 250 lux, 0.6 m), the display class the thesis's 1600x900 frames were
 # made for, played at 60 fps, the frame rate a game's TAA is tuned at. A technique-frame costs

@@ -18,6 +18,9 @@ class Precision:
     relmse: float = D.PRECISION["relmse"]                 # relMSE HDR: a fraction
     start_bound_lsb: float = D.PRECISION["start_bound_lsb"]
     finest_bound_lsb: float = D.PRECISION["finest_bound_lsb"]
+    # A test whose figures are within tolerance at the probe rendered once more at the next bound,
+    # to measure the drift there too (study.engine.precision).
+    confirm: bool = D.PRECISION["confirm"]
     # Column labels whose figures are printed with their uncertainty but set no test's bound: a
     # control that nearly is the reference (the thesis's 128-sample accumulation: MSE ~0.05 on pipe
     # at 320x180) would ask for the finest bound on every scene, 16-64x the samples of the rest.

@@ -39,6 +39,7 @@ such files (study/config/profiles/*.toml).
     relmse = 0.01                                    # relMSE HDR, a fraction of it
     start_bound_lsb = 8.0                            # each test's references probed at this per-pixel bound,
     finest_bound_lsb = 0.125                         #   then at what the figures ask for, down to this
+    confirm = false                                  # true: a test settled at the probe once more, finer
     exempt = []                                      # column labels whose figures set no precision
     [video]                                          # the perceptual video metric (study.metrics.video)
     metric = "cvvdp"                                 # ColorVideoVDP, in JOD; or "none"
@@ -128,6 +129,7 @@ class PrecisionEntry(_Model):
     relmse: float = Field(D.PRECISION["relmse"], gt=0)
     start_bound_lsb: float = Field(D.PRECISION["start_bound_lsb"], gt=0, le=64)
     finest_bound_lsb: float = Field(D.PRECISION["finest_bound_lsb"], gt=0)
+    confirm: bool = D.PRECISION["confirm"]
     exempt: list[str] = Field(default_factory=list)
 
     @field_validator("finest_bound_lsb")

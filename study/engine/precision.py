@@ -5,24 +5,26 @@ A reference's noise matters only through the figures it is judged into, and thos
 uncertainty is measured, not assumed, in two parts:
   - the noise the two halves of a reference see (study.metrics.uncertainty): random, and the
     bias that scales with the noise's variance, which the jackknife removes;
-  - what both halves share, or they understate (`drift`): candidates are a sliver every sample
-    of a pixel missed, the stopping rule's bias, a residual the jackknife leaves where 8-bit
-    rounding makes a figure's dependence on the noise non-linear; the cause is not established.
-    Measured: on hairball_lit at 400x225, SSAA 16x's MSE against 4-LSB references stayed 0.56 %
-    above the 0.25-LSB figure after the jackknife, while the halves said +-0.4 % (2 LSB: within
-    0.2 %); at 1600x900 FXAA's MSE on hairball_rotating_lit fell 0.4-0.8 % from 8 to 2 LSB and
-    0.1-0.2 % from 2 to 1 LSB. It shrinks with the bound (taken in proportion), so the change of a
-    figure from a coarser bound b0 to the bound b estimates what is left of it at b:
-    change x b / (b0 - b).
+  - what both halves share, or they understate (`drift`): a sliver every sample of a pixel
+    missed, a residual the jackknife leaves where 8-bit rounding makes a figure's dependence on
+    the noise non-linear, and, while references were the mean of the samples that decided their
+    counts, the stopping rule's bias: on hairball_lit (160x90) the jackknifed MSE of a blurred
+    image was 1.2 % high at 8 LSB, 0.07 % at 2 (scripts/reference_bias.py), which drove most
+    1600x900 tests to 0.125 LSB. The figures' rule's references are now held out
+    (references.estimates: unbiased): the same figure is 220.76 +- 0.49 at 8 LSB against 220.87.
+    What is left shrinks with the bound (taken in proportion), so the change of a figure from a
+    coarser bound b0 to the bound b estimates what is left of it at b: change x b / (b0 - b).
 Each test (a scene under one protocol: its static test, each ghosting protocol) has its own bound,
 since their figures need different precisions: a near-converged SSAA 16x on pipe (MSE 0.2) needs
 ~0.25 LSB, a ghosting TAA (MSE ~10^2) far less, and a sequence's every frame pays for it.
   1. A probe: every reference of the test at `start_bound_lsb` (8 LSB by default, a few times the
      pilot's samples).
-  2. The bound the figures need, predicted from the probe: a figure's halves' uncertainty falls in
-     proportion to the bound, so each asks for b tol / (u x MARGIN); the test's references are
-     rendered again at the largest power-of-two fraction of the start below what every figure asks,
-     at least one level finer (the drift needs a second bound).
+  2. A test whose every figure is within its tolerance at the probe is settled there (`confirm`:
+     rendered once more at the next bound, to measure the drift as well). Otherwise the bound the
+     figures need, predicted from the probe: a figure's halves' uncertainty falls in proportion to
+     the bound, so each asks for b tol / (u x MARGIN); the test's references are rendered again at
+     the largest power-of-two fraction of the start below what every figure asks, at least one
+     level finer.
   3. Checked there: every figure's halves' uncertainty plus its drift from the bound before within
      its tolerance, else predicted again from that sum (at least one level finer), down to
      `finest_bound_lsb`. A figure's stated uncertainty is that sum; figures still over their
@@ -113,7 +115,7 @@ def decide(now: dict, before: dict, levels: dict, precision, over: dict, drifts:
             drifts[k] = change
             figs = {f: (v, u + change.get(f, 0.0)) for f, (v, u) in figs.items()}
         over[k] = over_tolerance(figs, precision.tolerances)
-        if (over[k] or level == 0) and level < precision.levels():
+        if (over[k] or (level == 0 and precision.confirm)) and level < precision.levels():
             finer[k] = needed_level(figs, precision.tolerances, level, precision.levels())
         before[k] = (b, now[k])
     return finer, judged
