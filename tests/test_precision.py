@@ -327,3 +327,31 @@ def test_a_study_of_the_same_tasks_replays_the_precision_decisions(tmp_path, mon
     assert study(relabelled)[2] == 2
     edited = [TechniqueConfig.parse("taa_baseline:k_min=0.5"), configs[1]]
     assert study(edited)[2] >= 3
+
+
+@pytest.mark.long(seconds=20)
+def test_a_seeded_study_starts_each_test_at_the_bound_an_earlier_study_settled(tmp_path):
+    """What `ab` runs: with one technique added, every test starts at the bound the study settled
+    it at (no probe round: the settled column's figures there are cached), and is refined only where
+    the new column's figures ask for it; unseeded, the same study starts at the probe."""
+    from study_fixtures import write_scenes
+    from study.config.profile import get_profile
+    from study.config.techniques import TechniqueConfig
+    from study.engine.runner import Study
+    scenes = write_scenes(tmp_path)[:1]
+    a, b = (TechniqueConfig.parse(s) for s in ("taa_baseline", "B=taa_baseline:sharpen=none"))
+    logs = []
+
+    def study(cs, seeded):
+        logs.clear()
+        s = Study(get_profile("quick"), cache_root=tmp_path / "cache", progress=False, log=logs.append)
+        res = s.run(scenes, cs, agreement=False, seeded=seeded)
+        return {(n, p): r["rounds"] for n, per in res.precision.items() for p, r in per.items()}, res
+    first, _ = study([a], False)
+    assert all(r[0] == 8.0 and len(r) >= 2 for r in first.values()), first    # probed, then refined
+    seeded, res = study([a, b], True)
+    assert any("start at the bound an earlier study settled" in m for m in logs), logs
+    assert {k: r[0] for k, r in seeded.items()} == {k: r[-1] for k, r in first.items()}, (seeded, first)
+    assert res.stats["references_rendered"] == 0 or any(len(r) > 1 for r in seeded.values())
+    unseeded, _ = study([a, TechniqueConfig.parse("C=taa_baseline:sharpen=xu")], False)
+    assert all(r[0] == 8.0 for r in unseeded.values())

@@ -77,7 +77,8 @@ def compare(a: TechniqueConfig, b: TechniqueConfig, scenes, profile: str = "quic
     vid = dataclasses.replace(study.profile.video, techniques=()) if video else \
         dataclasses.replace(study.profile.video, metric="none")
     study.profile = dataclasses.replace(study.profile, ghosting=warm, video=vid)
-    out = study.run(list(scenes), [a, b], agreement=False)
+    # each test at the bound the study settled it at: A's figures there are cached, B's judged once
+    out = study.run(list(scenes), [a, b], agreement=False, seeded=True)
     res = ABResult(a.label, b.label, recomputed={k: v for k, v in out.stats.items() if k != "tasks"})
     overall = {m: [] for m in AB_METRICS}
     overall_u = {m: [] for m in AB_METRICS}

@@ -109,7 +109,7 @@ def decide(now: dict, before: dict, levels: dict, precision, over: dict, drifts:
         if k in before and before[k][0] == b:
             continue                       # not refined this round: as decided before
         judged.add(k)
-        if level > 0:                      # what both halves share: the change from the coarser bound
+        if level > 0 and k in before:      # what both halves share: the change from the coarser bound
             b0 = before[k][0]
             change, _ = drift(figs, before[k][1], precision.tolerances, b / (b0 - b))
             drifts[k] = change

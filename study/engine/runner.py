@@ -118,10 +118,12 @@ class Study:
         return planner.plan, scenes, statics, ghosts, sweeps, sharpens
 
     def run(self, specs: list[str], configs: list[TechniqueConfig], agreement: bool = True,
-            sweep: tuple = (), ghosting: bool = True, sharpen: tuple = ()) -> StudyResults:
+            sweep: tuple = (), ghosting: bool = True, sharpen: tuple = (), seeded: bool = False) -> StudyResults:
         """Plan, execute and gather; under the figures' precision rule, again for every test with a
         figure over its tolerance (or only probed), its references at the bound its figures ask for,
-        until none is or the finest bound is reached (study.engine.precision)."""
+        until none is or the finest bound is reached (study.engine.precision). `seeded`: a test an
+        earlier study settled (the same references) starts at the bound it settled at, not at the
+        probe (an A/B comparison: its new column is judged there, and refined only if over)."""
         rounds, tried, over, before = [], {}, {}, {}    # over: (scene, protocol) -> figures over at its bound
         self.drifts = {}              # (scene, protocol) -> (protocol, label, frame, metric) -> drift
         figures = self.precision.rule == "figures"
@@ -136,6 +138,12 @@ class Study:
                                                                       prune=not figures)
                 if figures and memo is None:      # the probe's plan: did a study decide from it before?
                     memo = self._decisions(plan, agreement)
+                    probes = {(t.scene, t.protocol.name): sorted(t.reference_tasks.values()) for t in statics + ghosts + sweeps}
+                    seeds = self._settled(probes) if seeded and not memo["replayed"] else {}
+                    if seeds:
+                        self.levels.update(seeds)
+                        self.log(f"precision: {len(seeds)} of {len(probes)} tests start at the bound an earlier study settled")
+                        continue
                     if memo["replayed"]:
                         self.levels, tried, over, self.drifts = P.from_record(memo["replayed"])
                         self.log("precision: every test's bound as decided by an earlier study of the same tasks")
@@ -188,6 +196,8 @@ class Study:
                     agree, settled = agreement, True
                 self.levels.update(finer)
         self.planner.prune_runs(lambda k: True)
+        if figures:
+            self._settle(probes)
         if memo is not None and not memo["replayed"]:
             memo["store"].save_record(memo["path"], memo["key"], P.to_record(self.levels, tried, over, self.drifts))
         from study.engine.store import Store
@@ -247,6 +257,31 @@ class Study:
                        code=["study.engine.precision", "study.engine.runner"])
         path = store.record_path("precision", "decisions", key)
         return {"store": store, "path": path, "key": key, "replayed": store.load_record(path, key)}
+
+    def _settled_path(self, store, test: tuple, probe_refs: list):
+        key = task_key("precision-settled", {"test": list(test), "references": probe_refs, "precision": repr(self.precision)},
+                       code=["study.engine.precision"])
+        return store.record_path("precision", "settled", key), key
+
+    def _settle(self, probes: dict) -> None:
+        """Each test's final level, filed under its probe references (what `seeded` reads)."""
+        from study.engine.store import Store
+        store = Store(self.cache.root)
+        for k, refs in probes.items():
+            path, key = self._settled_path(store, k, refs)
+            if (store.load_record(path, key) or {}).get("level") != self.levels.get(k, 0):
+                store.save_record(path, key, {"level": self.levels.get(k, 0)})
+
+    def _settled(self, probes: dict) -> dict:
+        """test -> the level an earlier study settled it at, for the tests one did."""
+        from study.engine.store import Store
+        store = Store(self.cache.root)
+        out = {}
+        for k, refs in probes.items():
+            rec = store.load_record(*self._settled_path(store, k, refs))
+            if rec is not None and rec.get("level", 0) > 0:
+                out[k] = int(rec["level"])
+        return out
 
     def _with_drift(self, res: TestResult) -> TestResult:
         """A figure's stated uncertainty: its halves' plus its change from the coarser bound."""
