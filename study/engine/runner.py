@@ -183,7 +183,8 @@ class Study:
                             self.log(f"precision: {name}: every figure within its tolerance at the {b:g}-LSB probe; {nxt}, "
                                      "where the figures ask for it and the drift can be measured")
                         elif len(tried.get(k, ())) == 1:
-                            self.log(f"precision: {name}: every figure within its tolerance at the {b:g}-LSB probe: settled")
+                            first = "probe" if b == self.precision.start_bound_lsb else "first bound (an earlier study's)"
+                            self.log(f"precision: {name}: every figure within its tolerance at its {b:g}-LSB {first}: settled")
                         continue
                     label, tech, f, m, u, tol = over[k][0]
                     self.log(f"precision: {name}: {len(over[k])} figures over their tolerance at {b:g} LSB, the worst "
