@@ -7,9 +7,10 @@ resolution, the convergence settings and the source of the shading, reference an
 the linear standard error (`stderr.R/G/B`), the display-domain standard error
 (`display_stderr.R/G/B`, 1 = full scale), the part of it that is the unseen-feature floor
 (`display_floor.R/G/B`, references/render.py), the split into two independent halves
-(`half_delta.R/G/B`: half A = RGB + delta, half B = RGB - delta) and the samples per pixel (`spp`), and its header
+(`half_delta.R/G/B`: half A = RGB + delta, half B = RGB - delta) and the samples per pixel traced (`spp`), and its header
 the bound, seconds, mean/max spp, 99.9th percentile and max SE in LSB, the pixels over the bound
-(and the samples the worst of them would take) and those whose SE is the floor. Files are written atomically (references/exr.py), so an
+(and the samples the worst of them would take), those whose SE is the floor, and whether the value is
+the mean of held-out samples (`taa_held_out`, references.estimates: part of the key too). Files are written atomically (references/exr.py), so an
 interrupted render leaves nothing; a file that fails to read, lacks its key or holds NaN/Inf is
 reported, removed and rendered again.
 """
