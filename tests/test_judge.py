@@ -42,6 +42,8 @@ def test_one_metrics_task_per_test_reads_each_reference_once_and_agrees_with_jud
     study = Study(get_profile(str(path)), cache_root=tmp_path / "cache", progress=False)
     res = study.run(scenes, configs, agreement=False)
     assert res.stats["tasks"]["metrics"] == 4               # 2 static tests, cold and warm ghosting
+    # where the time went, by task kind: every kind that ran, positive, and no kind that did not
+    assert set(res.stats["task_seconds"]) == set(res.stats["tasks"]) and min(res.stats["task_seconds"].values()) > 0
     assert res.stats["metrics_computed"] == 2 * 3 + 3 + 1   # warm: No AA and FXAA are the cold runs
     # per task each scene time once: static t 0 (x2 scenes), cold t 0..3, warm t 0..3
     assert sorted(reads) == sorted([("tiny_moving", 0), ("tiny_still", 0)] + [("tiny_moving", t) for t in range(4)] * 2)

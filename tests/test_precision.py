@@ -317,6 +317,7 @@ def test_a_study_of_the_same_tasks_replays_the_precision_decisions(tmp_path, mon
     assert n1 >= 3 and min(len(r) for r in rounds.values()) >= 2 and plans[-1], (n1, rounds)
     again, figs2, n2, drifts2 = study()
     assert n2 == 2 and again.stats["tasks"] == {} and again.agreements == first.agreements
+    assert again.stats["task_seconds"] == {}                # nothing ran, nothing timed
     assert again.precision == first.precision and drifts2 == drifts1 and figs2 == figs1
     # afresh (the record removed): the same decisions, from the rounds themselves
     for p in (tmp_path / "cache" / "precision").rglob("*.json"):

@@ -1,6 +1,7 @@
-"""The statistics the tables print come from scipy (pinned): Spearman's rho of two rankings
-(the reproduction table) and the percentile-bootstrap interval of a mean (ab). The figures they give
-today are pinned, and the rank correlation agrees with the closed form for rankings without ties."""
+"""The statistics the tables print: Spearman's rho of two rankings (the reproduction table) and the
+percentile-bootstrap interval of a mean (ab, the findings). The figures they give today are pinned,
+the rank correlation agrees with the closed form for rankings without ties, and the bootstrap with
+scipy.stats.bootstrap (pinned, an independent implementation) resample for resample."""
 import itertools
 import math
 
@@ -46,6 +47,17 @@ def test_bootstrap_interval_pinned():
     assert lo < d.mean() < hi
     assert bootstrap_ci(d) == (lo, hi)                       # fixed seed: the same figures every run
     assert bootstrap_ci(np.arange(10.0)) == pytest.approx((2.7, 6.3), abs=1e-12)
+
+
+@pytest.mark.parametrize("n", [2, 8, 25, 700])
+def test_bootstrap_equals_scipys(n):
+    from scipy import stats
+    d = np.random.default_rng(n).normal(0.2, 1.0, n)
+    ref = stats.bootstrap((d,), np.mean, n_resamples=2000, confidence_level=0.95, method="percentile",
+                          random_state=np.random.default_rng(0)).confidence_interval
+    assert bootstrap_ci(d) == pytest.approx((ref.low, ref.high), rel=1e-12, abs=1e-14)
+    if n > 2:      # two values: the interval is their range whatever the draws
+        assert bootstrap_ci(d, seed=1) != bootstrap_ci(d)    # the seed is used
 
 
 def test_bootstrap_degenerate_cases():

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import os
 import sys
+import time
 from collections import Counter
 from dataclasses import dataclass
 
@@ -79,7 +80,10 @@ class Call:
 
 
 def _run(call: Call, deps):
-    return call(deps)
+    """The task's result and its wall seconds (where the study's time goes, by task kind)."""
+    t0 = time.perf_counter()
+    out = call(deps)
+    return out, time.perf_counter() - t0
 
 
 def graph(plan) -> dict:
@@ -92,11 +96,13 @@ class _Bar:
     def __init__(self, plan, progress: bool):
         self.kinds = Counter(t.kind for t in plan.tasks.values())
         self.done = Counter()
+        self.seconds = Counter()      # task seconds by kind (summed over workers)
         self.bar = tqdm(total=len(plan.tasks), desc="study", unit="task", disable=not progress or not plan.tasks,
                         file=sys.stderr, mininterval=0.5)
 
-    def finished(self, kind: str):
+    def finished(self, kind: str, seconds: float = 0.0):
         self.done[kind] += 1
+        self.seconds[kind] += seconds
         self.bar.set_postfix_str(", ".join(f"{k} {self.done[k]}/{n}" for k, n in sorted(self.kinds.items())),
                                  refresh=False)
         self.bar.update(1)
@@ -112,6 +118,7 @@ class Session:
     def __init__(self, executor: Executor = Executor(), log=print):
         self.executor, self.log = executor, log
         self._client = self._cluster = None
+        self.task_seconds = Counter()     # kind -> task seconds over every round so far
 
     def _connect(self, n_tasks: int):
         ex = self.executor
@@ -170,21 +177,22 @@ class Session:
 
                 class _Progress(Callback):
                     def _posttask(self, key, result, dsk_, state, worker_id):
-                        bar.finished(plan.tasks[key].kind)
+                        bar.finished(plan.tasks[key].kind, result[1])
 
                 with _Progress():
                     out = dask.get(dsk, keys)
-                results.update(zip(keys, out))
+                results.update((k, r) for k, (r, _) in zip(keys, out))
             else:
                 from distributed import as_completed
                 futures = client.get(dsk, keys, sync=False)
                 for fut in as_completed(futures):
-                    results[fut.key] = fut.result()     # re-raises a task's own exception
-                    bar.finished(plan.tasks[fut.key].kind)
+                    results[fut.key], seconds = fut.result()     # re-raises a task's own exception
+                    bar.finished(plan.tasks[fut.key].kind, seconds)
                 missing = [k for k in keys if k not in results]
                 if missing:
                     raise RuntimeError(f"{len(missing)} tasks returned no result")
         finally:
             bar.close()
+        self.task_seconds.update(bar.seconds)
         return results
 

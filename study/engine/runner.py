@@ -9,6 +9,8 @@ code. A second study with nothing changed plans no task and only re-reads small 
 from __future__ import annotations
 
 import math
+import time
+from collections import Counter
 import sys
 from pathlib import Path
 
@@ -158,7 +160,12 @@ class Study:
                 if plan.tasks:
                     self.log(f"study: {len(plan.tasks)} tasks to compute ({', '.join(f'{k} {n}' for k, n in sorted(counts.items()))})"
                              f", {len(plan.cached)} complete; executor: {self.executor.describe()}")
+                t0, spent = time.perf_counter(), Counter(session.task_seconds)
                 results = session.execute(plan, self.progress)
+                if plan.tasks:
+                    spent = session.task_seconds - spent
+                    self.log(f"study: round {len(rounds) + 1} took {time.perf_counter() - t0:.1f} s wall; task seconds "
+                             + ", ".join(f"{k} {v:.1f}" for k, v in sorted(spent.items())))
                 for key in [k for k, v in results.items() if "records" in v]:   # a metrics or video task: by key
                     task = results.pop(key)
                     for mkey, rec in task["records"].items():
@@ -225,7 +232,7 @@ class Study:
                      "metrics_computed": sum(1 for v in results.values() if v["kind"] == "metrics" and v["computed"]),
                      "video_computed": sum(1 for v in results.values() if v["kind"] == "video" and v["computed"]),
                      "references_rendered": sum(1 for v in results.values() if v["kind"] == "reference" and v["rendered"]),
-                     "tasks": counts}
+                     "tasks": counts, "task_seconds": dict(session.task_seconds)}
         out.stats["runs_cached"] = max(0, sum(len(t.configs) for t in statics + ghosts + sweeps + sharpens)
                                        - out.stats["runs_computed"])
         costs = self._costs(scenes, statics, results)
