@@ -31,3 +31,20 @@ def test_samples_per_pixel_and_the_total(scene):
         assert c["total_ms"] == pytest.approx(n * c["raster_ms"] + c["extra_ms"] + c["resolve_ms"], rel=1e-12)
         assert c["raster_ms"] > 0 and c["resolve_ms"] > 0
     assert got["Sparse"]["extra_ms"] > 0 and got["TAA"]["extra_ms"] == 0
+
+
+def test_columns_reading_the_same_buffers_share_one_rasteriser_and_its_timing(scene):
+    import numpy as np
+    configs = [TechniqueConfig("TAA", "taa_baseline"), TechniqueConfig("TAA, no sharpen", "taa_baseline", (("sharpen", "none"),)),
+               TechniqueConfig("No AA", "noaa")]
+    disp = {0: DisplayTransform.from_reference(np.full((18, 32, 3), 0.5, np.float32))}
+    sources = costs.Sources()
+    try:
+        got = {c.label: costs.measure(scene, 32, 18, [c], disp, {}, sources)[c.label] for c in configs}
+        # the two TAAs read the same buffers: one source, one timing; No AA reads colour alone: its own
+        assert len(sources._by) == 2
+        assert got["TAA"]["raster_ms"] == got["TAA, no sharpen"]["raster_ms"]
+        assert got["No AA"]["raster_ms"] != got["TAA"]["raster_ms"]
+    finally:
+        sources.close()
+    assert sources._by == {}

@@ -22,10 +22,12 @@ def test_a_study_file_without_techniques_compares_the_default_set(tmp_path):
         f.write_text(text)
         labels = [c.label for c in load_study(f).techniques]
         assert labels == [c.label for c in get_profile("quick").techniques], labels
-        assert labels[:5] == ["No AA", "FXAA", "SMAA", "Uncharted", "Improved"] and len(labels) == 24, labels
-        # the upscalers, one column per render scale (13 output-size columns before them)
-        assert labels[12:23] == [f"{u} ×{s}" for u in ("FSR 2", "TAAU") for s in ("0.5", "0.67", "0.77", "1")] + \
-            [f"Lanczos ×{s}" for s in ("0.5", "0.67", "0.77")], labels
+        assert labels[:5] == ["No AA", "FXAA", "SMAA", "Uncharted", "Improved"] and len(labels) == 13, labels
+        assert labels[-1] == "Accumulation 128" and not any("×" in l for l in labels), labels
+    # the upscalers, one column per render scale, are the full profile's (13 output-size columns before them)
+    full = [c.label for c in get_profile("full").techniques]
+    assert full[13:24] == [f"{u} ×{s}" for u in ("FSR 2", "TAAU") for s in ("0.5", "0.67", "0.77", "1")] + \
+        [f"Lanczos ×{s}" for s in ("0.5", "0.67", "0.77")], full
 
 
 @pytest.mark.parametrize("args, words", [

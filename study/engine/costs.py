@@ -46,15 +46,40 @@ def machine() -> dict:
             "variant": backend.VARIANT}
 
 
-def measure(scene, width: int, height: int, configs: list, displays: dict, extra_spp: dict) -> dict:
-    """`extra_spp`: label -> mean extra samples per pixel its run shaded (sparse supersampling)."""
+class Sources:
+    """The frame sources of one scene's cost measurements and their raster times, one per (render
+    size, buffers): the columns reading the same buffers at the same size (the TAAs and their
+    variants) share one rasteriser and one raster timing instead of each making and timing its own."""
+
+    def __init__(self):
+        self._by: dict = {}
+
+    def get(self, scene, width: int, height: int, inp) -> tuple:
+        k = (scene.content_hash, width, height, inp.render_scale, tuple(sorted(set(inp.buffers) | {"color"})))
+        if k not in self._by:
+            src = FrameSource.for_output(scene, width, height, inp.render_scale, inp.buffers)  # an upscaler's: smaller
+            raster_ms = median_ms(lambda: src.raster.render(0, halton_offset(3, TAA_PERIOD), src.buffers, prev_t=0))
+            self._by[k] = (src, raster_ms)
+        return self._by[k]
+
+    def close(self):
+        for src, _ in self._by.values():
+            src.close()
+        self._by.clear()
+
+
+def measure(scene, width: int, height: int, configs: list, displays: dict, extra_spp: dict,
+            sources: Sources | None = None) -> dict:
+    """`extra_spp`: label -> mean extra samples per pixel its run shaded (sparse supersampling).
+    `sources`: kept across calls for one scene (the caller closes it); else made and closed here."""
     out = {}
+    own = sources is None
+    sources = Sources() if own else sources
     for c in configs:
         tech = c.make()
         inp = tech.inputs
-        src = FrameSource.for_output(scene, width, height, inp.render_scale, inp.buffers)  # an upscaler's: smaller
+        src, raster_ms = sources.get(scene, width, height, inp)
         try:
-            raster_ms = median_ms(lambda: src.raster.render(0, halton_offset(3, TAA_PERIOD), src.buffers, prev_t=0))
             first = Step(0, 0, keep=True, reset=True, prev_t=0, frame=1)
             drive(tech, first, src, scene, width, height, displays.get(0))   # fills the history, as the kernels expect
 
@@ -96,5 +121,6 @@ def measure(scene, width: int, height: int, configs: list, displays: dict, extra
                             "samples_per_pixel": spp, "render_scale": inp.render_scale,
                             "total_ms": raster_ms * inp.subframes + extra_ms + resolve_ms}
         finally:
-            src.close()
+            if own:
+                sources.close()
     return out

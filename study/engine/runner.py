@@ -377,14 +377,18 @@ class Study:
                     out[(test.scene, c.label)] = rec
         if todo:
             from tqdm import tqdm
-            refs = {}
-            for test, scene, c, extra, key, path in tqdm(todo, desc="costs (serial)", unit="technique",
-                                                          disable=not self.progress, file=sys.stderr):
-                if test.scene not in refs:
-                    refs[test.scene] = self.display(scene, 0, test.width, test.height)
-                got = _deterministic(C.measure)(scene, test.width, test.height, [c], {0: refs[test.scene]},
-                                                {c.label: extra})[c.label]
-                out[(test.scene, c.label)] = store.save_record(path, key, got)
+            refs, sources = {}, C.Sources()
+            try:
+                for test, scene, c, extra, key, path in tqdm(todo, desc="costs (serial)", unit="technique",
+                                                              disable=not self.progress, file=sys.stderr):
+                    if test.scene not in refs:
+                        sources.close()          # todo is in scene order: one scene's rasterisers at a time
+                        refs[test.scene] = self.display(scene, 0, test.width, test.height)
+                    got = _deterministic(C.measure)(scene, test.width, test.height, [c], {0: refs[test.scene]},
+                                                    {c.label: extra}, sources)[c.label]
+                    out[(test.scene, c.label)] = store.save_record(path, key, got)
+            finally:
+                sources.close()
         return out
 
 
