@@ -32,3 +32,23 @@ def test_psnr_infinite_for_identical_and_nan_reference_refused():
     assert psnr(a, a + 0.1) == pytest.approx(20.0)
     with pytest.raises(ValueError, match="NaN"):
         DisplayTransform.from_reference(np.full((2, 2, 3), np.nan))
+
+
+def test_a_study_process_encodes_without_colours_plotting_stack_and_can_still_plot():
+    """study/__init__ defers colour.plotting (matplotlib, networkx: 1.5 s of every process that
+    encodes): the encoding is colour's own, and colour.plotting still loads on first use."""
+    import subprocess
+    import sys
+    code = ("import sys, numpy as np\n"
+            "import study, colour\n"
+            "from display import DisplayTransform\n"
+            "d = DisplayTransform.from_reference(np.array([[[0.2, 0.4, 0.1], [2.0, 2.0, 2.0]]]))\n"
+            "x = d.encode(np.array([[[0.5, 0.25, 0.125]]]))\n"
+            "assert np.array_equal(x, colour.cctf_encoding(d.tonemap(np.array([[[0.5, 0.25, 0.125]]])), function='sRGB'))\n"
+            "print('before', 'matplotlib' in sys.modules)\n"
+            "f = colour.plotting.plot_single_colour_swatch\n"
+            "import colour.plotting as P\n"
+            "print('after', 'matplotlib' in sys.modules, P is colour.plotting, callable(f))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["before", "False", "after", "True", "True", "True"], out.stdout
