@@ -79,7 +79,8 @@ def compare(a: TechniqueConfig, b: TechniqueConfig, scenes, profile: str = "quic
     study.profile = dataclasses.replace(study.profile, ghosting=warm, video=vid)
     # each test at the bound the study settled it at: A's figures there are cached, B's judged once
     out = study.run(list(scenes), [a, b], agreement=False, seeded=True)
-    res = ABResult(a.label, b.label, recomputed={k: v for k, v in out.stats.items() if k != "tasks"})
+    res = ABResult(a.label, b.label, recomputed={k: v for k, v in out.stats.items()
+                                                   if k not in ("tasks", "task_seconds")})
     overall = {m: [] for m in AB_METRICS}
     overall_u = {m: [] for m in AB_METRICS}
     per_scene: dict = {}
