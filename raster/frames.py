@@ -162,6 +162,7 @@ class Rasterizer:
                 needed.update(int(v) for v in np.unique(o) if v > 0)
                 _, surf, _ = self._reconstruct(geo, cam, idx, o, pr, jit)
                 col = shade(geo, surf, cam.position, surf.obj > 0)
+                dr.eval(col)               # one kernel for the three channels
                 out[sel] += np.stack([np.asarray(col[k]) for k in range(3)], -1)
             out[sel] /= len(offsets)
         stats = {"samples_shaded": int(len(sel) * len(offsets)), "pixels_supersampled": int(len(sel)),
@@ -191,35 +192,27 @@ class Rasterizer:
         obj, p, n_geo, n_sh, uv = surf.obj, surf.p, surf.n_geo, surf.n_sh, surf.uv
         valid = obj > 0
         eye = cam.position
-        ray_o = mi.Point3f(*(float(c) for c in eye))
-
-        out: dict[str, np.ndarray] = {}
-
-        def img(x, c):
-            a = np.asarray(x, dtype=np.float32) if c == 1 else np.stack([np.asarray(x[k]) for k in range(c)], -1)
-            return a.reshape(H, W, c) if c > 1 else a.reshape(H, W)
-
+        # every buffer asked for is evaluated in one kernel launch: converting a Color3f channel by
+        # channel launched (and compiled) the whole shading once per channel, and depth, motion
+        # and normal once more each
+        lazy: dict = {}                    # buffer -> (Dr.Jit value, channels)
         if "color" in buffers or "light_mask" in buffers:
             masks: list = []
             colour = shade(geo, surf, eye, valid, light_mask=masks)
             if "color" in buffers:
-                out["color"] = img(colour, 3)
+                lazy["color"] = (colour, 3)
             if "light_mask" in buffers:
-                out["light_mask"] = np.asarray(masks[0], np.int64).reshape(H, W).astype(np.int32)
+                lazy["light_mask"] = (masks[0], 1)
         if "albedo" in buffers:
-            bg = mi.Color3f(*self.scene.desc.background)
-            out["albedo"] = img(dr.select(valid, albedo_at(geo, obj, uv, valid), bg), 3)
+            bg = opaque(mi.Color3f, *self.scene.desc.background)
+            lazy["albedo"] = (dr.select(valid, albedo_at(geo, obj, uv, valid), bg), 3)
         if "depth" in buffers or "motion" in buffers:
             pos_cur, depth = image_position(cam, p)
         if "depth" in buffers:
-            out["depth"] = img(dr.select(valid, depth, cam.far), 1)
-        if "object_id" in buffers:
-            out["object_id"] = obj_np.astype(np.int32)
-        if "prim_id" in buffers:
-            out["prim_id"] = np.where(obj_np > 0, prim_np.astype(np.int64), -1).astype(np.int32)
+            lazy["depth"] = (dr.select(valid, depth, opaque(mi.Float, cam.far)), 1)
         if "normal" in buffers:
-            facing = dr.select(dr.dot(n_geo, p - ray_o) > 0, -n_sh, n_sh)
-            out["normal"] = img(dr.select(valid, facing, 0.0), 3)
+            facing = dr.select(dr.dot(n_geo, p - opaque(mi.Point3f, *eye)) > 0, -n_sh, n_sh)
+            lazy["normal"] = (dr.select(valid, facing, 0.0), 3)
         if "motion" in buffers or "prev_depth" in buffers:
             prev_cam = self.camera(prev_t)
             pp = self._prev_positions(prev_t)
@@ -228,10 +221,23 @@ class Rasterizer:
             if "motion" in buffers:
                 bg_now = _direction_position(cam, ray_d)
                 bg_prev = _direction_position(prev_cam, ray_d)
-                mv = dr.select(valid, pos_cur - pos_prev, bg_now - bg_prev)
-                out["motion"] = img(mv, 2)
+                lazy["motion"] = (dr.select(valid, pos_cur - pos_prev, bg_now - bg_prev), 2)
             if "prev_depth" in buffers:
-                out["prev_depth"] = img(dr.select(valid, depth_prev, prev_cam.far), 1)
+                lazy["prev_depth"] = (dr.select(valid, depth_prev, opaque(mi.Float, prev_cam.far)), 1)
+        dr.eval(*(v for v, _ in lazy.values()))
+
+        out: dict[str, np.ndarray] = {}
+        for name, (x, c) in lazy.items():
+            if name == "light_mask":
+                out[name] = np.asarray(x, np.int64).reshape(H, W).astype(np.int32)
+            elif c == 1:
+                out[name] = np.asarray(x, dtype=np.float32).reshape(H, W)
+            else:
+                out[name] = np.stack([np.asarray(x[k]) for k in range(c)], -1).reshape(H, W, c)
+        if "object_id" in buffers:
+            out["object_id"] = obj_np.astype(np.int32)
+        if "prim_id" in buffers:
+            out["prim_id"] = np.where(obj_np > 0, prim_np.astype(np.int64), -1).astype(np.int32)
         for name, a in out.items():
             if a.dtype.kind == "f" and not np.all(np.isfinite(a)):
                 bad = int(np.count_nonzero(~np.isfinite(a)))
