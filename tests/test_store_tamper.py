@@ -8,6 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from study_fixtures import run_cli, summary, write_scenes
@@ -165,3 +166,26 @@ def test_remembered_hashes_still_catch_an_edit_that_restores_the_modification_ti
     logs = []
     assert S.Store(tmp_path, log=logs.append).done(folder, "k", verify_files=True) is None
     assert len(calls) == 1 and "expected SHA-256" in logs[0] and rec["files"]["frame_0000.exr"][:16] in logs[0]
+
+
+def test_a_remembered_done_record_is_read_once_and_an_edit_is_still_caught(tmp_path, monkeypatch):
+    """Store.done remembers an unsealed record with its file's state (a study plans twice and its
+    report reads the records again); any write changes that state, so an edit made after the
+    record was remembered is still caught."""
+    import time as _time
+    from study.engine import store as S
+    st = S.Store(tmp_path)
+    folder = tmp_path / "runs" / "x"
+    st.save_folder(folder, "k1", {"frame_0000.exr": np.zeros((2, 2, 3), np.float32)}, {"label": "A"})
+    monkeypatch.setattr(S, "_SETTLE_NS", 0)           # remembered at once (else after 2 s)
+    reads = []
+    real = Path.read_text
+    monkeypatch.setattr(Path, "read_text", lambda self, *a, **k: reads.append(self.name) or real(self, *a, **k))
+    assert st.done(folder, "k1")["label"] == "A"
+    assert st.done(folder, "k1")["label"] == "A"
+    assert reads.count("done.json") == 1
+    _time.sleep(0.01)
+    text = real(folder / "done.json")
+    (folder / "done.json").write_text(text.replace('"A"', '"B"'))    # key kept, value edited
+    assert st.done(folder, "k1") is None                               # the seal no longer matches
+    assert reads.count("done.json") == 2
