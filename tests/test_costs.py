@@ -48,3 +48,22 @@ def test_columns_reading_the_same_buffers_share_one_rasteriser_and_its_timing(sc
     finally:
         sources.close()
     assert sources._by == {}
+
+
+def test_a_supersampling_resolve_is_timed_on_a_few_rendered_sub_frames(scene):
+    """The resolve of N sub-frames (a mean) is timed on copies of DISTINCT_SUBFRAMES rendered ones,
+    not on N renders made twice (a warm-up drive, then the list): 2 x 128 raster frames a scene
+    for the thesis's accumulation were most of the quick study's serial cost measurement."""
+    import numpy as np
+    disp = {0: DisplayTransform.from_reference(np.full((18, 32, 3), 0.5, np.float32))}
+    sources = costs.Sources()
+    try:
+        got = costs.measure(scene, 32, 18, [TechniqueConfig("SSAA 32x", "accumulation", (("samples", 32),))],
+                            disp, {}, sources)["SSAA 32x"]
+        (src, _), = sources._by.values()
+        assert src.rendered == 4, src.rendered
+        assert costs.DISTINCT_SUBFRAMES == 4
+    finally:
+        sources.close()
+    assert got["samples_per_pixel"] == 32.0 and got["resolve_ms"] > 0
+    assert got["total_ms"] == pytest.approx(32 * got["raster_ms"] + got["resolve_ms"], rel=1e-12)
