@@ -230,7 +230,7 @@ def test_every_buffer_of_a_frame_is_one_kernel_launch_and_the_same_as_asked_alon
     from scenes.jitter import halton_offset
     scene = two_colour_scene(transport="direct", velocity=(0.02, 0.01, 0.0))
     scene = ResolvedScene(scene.desc.model_copy(update={"frames": 4}))
-    every = tuple(b for b in BUFFERS)
+    every = BUFFERS
     r = Rasterizer(scene, 32, 24)
     try:
         r.render(1, halton_offset(1), every, prev_t=0)             # compiles

@@ -109,6 +109,16 @@ _SETTLE_NS = 2_000_000_000        # a file changed this recently may change agai
 _RECORDS: dict[str, tuple] = {}
 
 
+def _state(st: os.stat_result) -> list:
+    """What any write to a file changes (the change time at least; no tool sets it back)."""
+    return [st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns]
+
+
+def _settled(st: os.stat_result) -> bool:
+    """Not changed within the last time tick: two writes within one could leave the same state."""
+    return time.time_ns() - st.st_ctime_ns > _SETTLE_NS
+
+
 class Store:
     """Artefacts under `root`: folders of files with a sealed done record, and sealed JSON records."""
 
@@ -139,14 +149,14 @@ class Store:
             st = path.stat()
         except FileNotFoundError:
             return None
-        state = (st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
+        state = _state(st)
         try:
             got = _RECORDS.get(str(path))
             if got is not None and got[0] == state:
                 record = got[1]
             else:
                 record = unseal(json.loads(path.read_text()), path)
-                if time.time_ns() - st.st_ctime_ns > _SETTLE_NS:
+                if _settled(st):
                     _RECORDS[str(path)] = (state, record)
             if record.get("key") != key:
                 return None
@@ -194,13 +204,13 @@ class Store:
             st = path.stat()
         except FileNotFoundError:
             return "missing"
-        state = [st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns]
+        state = _state(st)
         memo, name = self._hashes(), self._name(path)
         got = memo.get(name)
         if got is not None and got[:4] == state:
             return got[4]
         sha = sha256_file(path)
-        if time.time_ns() - st.st_ctime_ns > _SETTLE_NS:
+        if _settled(st):
             memo[name] = state + [sha]
             _CHANGED.add(str(self.root))
         return sha
