@@ -194,17 +194,49 @@ def test_drift_scaled_to_the_finer_bound_and_the_level_the_figures_ask_for():
     """A change from 8 to 2 LSB that shrinks in proportion to the bound leaves b / (b0 - b) = 1/3 of
     it at 2 LSB; a figure whose uncertainty is 10x its tolerance asks for ceil(log2(10 x 1.5)) = 4
     levels more (u falls with the bound), one within it for the one level a drift needs."""
-    from study.engine.precision import MARGIN, needed_level
-    from study.engine.precision import drift
+    from study.engine.precision import MARGIN, decide, drift, levels_asked
     tol = Precision().tolerances
     change, over = drift({("s", "A", 8, "psnr"): (30.00, 0.0)}, {("s", "A", 8, "psnr"): (30.06, 0.0)}, tol, 2 / (8 - 2))
     assert change[("s", "A", 8, "psnr")] == pytest.approx(0.02) and len(over) == 1
     assert MARGIN == 1.5
-    figs = {("s", "A", 8, "psnr"): (30.0, 0.1), ("s", "A", 8, "ssim"): (0.9, 1e-5)}
-    assert needed_level(figs, tol, 0, 6) == 4
-    assert needed_level(figs, tol, 2, 5) == 5                 # at most the finest
-    assert needed_level({("s", "A", 8, "ssim"): (0.9, 1e-5)}, tol, 1, 6) == 2   # at least one level finer
-    assert needed_level({("s", "A", 8, "mse"): (0.0, 0.3)}, tol, 0, 6) == 1     # no scale on a figure of 0
+    assert levels_asked(0.1, 0.01) == 4 and levels_asked(1e-5, 1e-4) == -2 and levels_asked(0.3, 0.0) == 0
+    A = ("s", "static")
+    figs = {("static", "A", 8, "psnr"): (30.0, 0.1), ("static", "A", 8, "ssim"): (0.9, 1e-5)}
+    assert decide({A: figs}, {}, {}, Precision(), {}, {})[0] == {A: {None: 4}}
+    assert decide({A: figs}, {}, {A: 2}, Precision(finest_bound_lsb=0.25), {}, {})[0] == {A: {None: 5}}   # at most the finest
+    ssim = {("static", "A", 8, "ssim"): (0.9, 2e-4)}         # over, asks 2: at least one level finer than 1
+    assert decide({A: ssim}, {}, {A: 1}, Precision(), {}, {})[0] == {A: {None: 3}}
+    zero = {("static", "A", 8, "mse"): (0.0, 0.3)}            # over a tolerance of 0, no scale: one level finer
+    assert decide({A: zero}, {}, {}, Precision(), {}, {})[0] == {A: {None: 1}}
+
+
+def test_a_ghosting_test_refines_the_instants_its_figures_are_over_at_and_the_temporal_rms_all():
+    """Frames 0-2 of a ghosting test are judged against the references of scene times 10-12. Frame
+    2's FLIP over its tolerance (4e-4 > 1e-4: asks ceil(log2(6)) = 3 levels) refines time 12 alone;
+    a temporal RMS over (a figure of every frame: asks ceil(log2(0.05 x 1.5 / 0.023)) = 2) refines
+    every instant from the coarsest. In the round after, a figure's drift is its change over its own
+    instants' bounds (8 -> 1 LSB: x 1/7), and frames whose references did not change keep theirs."""
+    from study.engine.precision import decide, level_at
+    G = ("s", "ghosting")
+    inst = {G: {("X", 0): 10, ("X", 1): 11, ("X", 2): 12}}
+    f0, f2, tr = ("ghosting", "X", 0, "flip_hdr"), ("ghosting", "X", 2, "flip_hdr"), ("ghosting", "X", None, "temporal")
+    p = Precision()
+    probe = {f0: (0.1, 0.5e-4), f2: (0.1, 4e-4), tr: (10.0, 0.001)}
+    levels, before, over, drifts = {}, {}, {}, {}
+    finer, judged = decide({G: probe}, before, levels, p, over, drifts, inst)
+    assert judged == {G} and finer == {G: {12: 3}} and [x[2] for x in over[G]] == [2]
+    levels.update({(*G, t): n for t, n in finer[G].items()})
+    assert [level_at(levels, G, t) for t in (10, 11, 12)] == [0, 0, 3]
+    # frame 2 moved 0.0003 at 1 LSB (beyond the 4.5e-4 of both halves? no: within): no drift;
+    # the temporal RMS moved 0.009 - 0.002 of noise = 0.007, x 1 / (8 - 1) = 0.001: within 0.023
+    finer, judged = decide({G: {f0: (0.1, 0.5e-4), f2: (0.1003, 0.4e-4), tr: (10.009, 0.001)}}, before, levels, p,
+                           over, drifts, inst)
+    assert judged == {G} and finer == {} and over[G] == []
+    assert drifts[G][f2] == 0.0 and drifts[G][tr] == pytest.approx(0.007 / 7) and f0 not in drifts[G]
+    # nothing changed: not judged again
+    assert decide({G: {f0: (0.1, 0.5e-4)}}, before, levels, p, over, drifts, inst) == ({}, set())
+    finer, _ = decide({G: {**probe, tr: (10.0, 0.05)}}, {}, {}, p, {}, {}, inst)
+    assert finer == {G: {10: 2, 11: 2, 12: 3}}
 
 
 def test_snr_is_derived_from_the_corrected_mse_as_psnr_is():
@@ -260,14 +292,14 @@ def test_decide_refines_each_test_on_its_own_and_leaves_a_settled_one_alone():
     f = ("static", "X", 8, "psnr")
     finer, judged = decide({A: {f: (40.0, 0.03)}, B: {f: (30.0, 0.012)}}, before, levels, p, over, drifts)
     # u falls with the bound: A asks ceil(log2(0.03 x 1.5 / 0.01)) = 3 levels (1 LSB), B 1 (4 LSB)
-    assert judged == {A, B} and finer == {A: 3, B: 1} and over[A] and over[B]
-    levels.update(finer)
+    assert judged == {A, B} and finer == {A: {None: 3}, B: {None: 1}} and over[A] and over[B]
+    levels.update({k: n[None] for k, n in finer.items()})
     finer, judged = decide({A: {f: (40.004, 0.002)}, B: {f: (30.1, 0.004)}}, before, levels, p, over, drifts)
     # A: the change 0.004 is within both noises (0.002 + 0.03): no drift, and u 0.002 <= 0.01
     assert judged == {A, B} and over[A] == [] and drifts[A][f] == 0.0 and A not in finer
     # B: (0.1 - 0.004 - 0.012) x 4 / (8 - 4) = 0.084 left at 4 LSB: over, on to ceil(log2(...))
-    assert drifts[B][f] == pytest.approx(0.084) and over[B] and finer == {B: 1 + math.ceil(math.log2(0.088 * 1.5 / 0.01))}
-    levels.update(finer)
+    assert drifts[B][f] == pytest.approx(0.084) and over[B] and finer == {B: {None: 1 + math.ceil(math.log2(0.088 * 1.5 / 0.01))}}
+    levels.update({k: n[None] for k, n in finer.items()})
     finer, judged = decide({A: {f: (40.004, 0.002)}, B: {f: (30.11, 0.001)}}, before, levels, p, over, drifts)
     assert judged == {B} and over[A] == [] and drifts[A][f] == 0.0
 
@@ -275,13 +307,13 @@ def test_decide_refines_each_test_on_its_own_and_leaves_a_settled_one_alone():
 def test_a_test_within_tolerance_at_the_probe_settles_there_unless_confirm_asks_for_a_second_bound():
     from study.engine.precision import decide
     A, f = ("s", "static"), ("static", "X", 8, "psnr")
-    for confirm, want in ((False, {}), (True, {A: 1})):
+    for confirm, want in ((False, {}), (True, {A: {None: 1}})):
         over: dict = {}
         finer, judged = decide({A: {f: (40.0, 0.009)}}, {}, {}, Precision(confirm=confirm), over, {})
         assert judged == {A} and over[A] == [] and finer == want, confirm
     # over its tolerance at the probe: refined either way
     finer, _ = decide({A: {f: (40.0, 0.011)}}, {}, {}, Precision(), {}, {})
-    assert finer == {A: 1}
+    assert finer == {A: {None: 1}}
 
 
 @pytest.mark.long(seconds=25)

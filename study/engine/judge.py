@@ -40,7 +40,8 @@ def metrics_task(ctx, scene_spec: str, w: int, h: int, items: list, ref_settings
                  deps=()) -> dict:
     """items: one per technique, {run_folder, run_key, frame_times (frame id -> scene time),
     maps_for (frame ids whose maps are kept), keep (frame ids of the run to keep once judged, or
-    None for all), key, folder}. Returns the records by metrics key."""
+    None for all), key, folder}. `ref_settings`: scene time -> the settings of its reference (each
+    instant of a test has its own bound: study.engine.precision). Returns the records by metrics key."""
     store = _setup(ctx)
     scene = load_scene(scene_spec)
     with contextlib.ExitStack() as locks:
@@ -90,9 +91,9 @@ def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict, display_set
     state = [{"per_frame": {}, "uncertainty": {}, "maps": {}, "references": {},
               "temporal": {h: M.TemporalInstability() for h in HALVES}} for _ in items]
     for t in sorted(by_time):
-        ref = cache.get(scene, t, w, h, **ref_settings)[0]
+        ref = cache.get(scene, t, w, h, **ref_settings[t])[0]
         # one transform for all three; at a test's probe the reference is the probe: not read twice
-        disp = (DisplayTransform.from_reference(ref.image) if display_settings == ref_settings
+        disp = (DisplayTransform.from_reference(ref.image) if display_settings == ref_settings[t]
                 else display_of(cache, scene, t, w, h, display_settings))
         refs = {hv: (*r, {}) for hv, r in judged_references(ref, disp).items()}   # {}: FLIP's memo
         for i, f in sorted(by_time[t]):

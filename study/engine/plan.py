@@ -67,6 +67,7 @@ class Test:
     maps_for: dict = field(default_factory=dict)        # label -> frame ids whose maps are kept
     keep: dict = field(default_factory=dict)            # label -> frame ids kept once judged (None: all)
     ref_settings: dict = field(default_factory=dict)    # its references' settings
+    ref_settings_at: dict = field(default_factory=dict)  # scene time -> those of its reference there
     video_keys: dict = field(default_factory=dict)      # label -> key of its JOD record (study.metrics.video)
 
 
@@ -133,8 +134,10 @@ class Planner:
         self._feeds_of: dict = {}        # run key -> [(metrics folder, key)] the planned run is judged into
         self._metrics_task_of: dict = {}  # metrics key -> key of the metrics task that judges it
 
-    def settings(self, scene, protocol: str) -> dict:
-        return dict(self.ref_settings_of.get((scene.name, protocol), self.ref_settings))
+    def settings(self, scene, protocol: str, t: int | None = None) -> dict:
+        """A test's references' settings; at instant t, that instant's own where it has one."""
+        got = self.ref_settings_of.get((scene.name, protocol, t)) if t is not None else None
+        return dict(got or self.ref_settings_of.get((scene.name, protocol), self.ref_settings))
 
     # -- keys ----------------------------------------------------------------------------------------
     def reference_key(self, scene, t: int, w: int, h: int, settings: dict) -> str:
@@ -169,7 +172,8 @@ class Planner:
         settings = self.settings(scene, protocol.name)
         test = Test(scene.name, spec, protocol, list(configs), w, h, ref_settings=settings)
         kept_t = sorted({s.t for s in schedule if s.keep})
-        ref_keys = {t: self.reference_key(scene, t, w, h, settings) for t in kept_t}
+        at = test.ref_settings_at = {t: self.settings(scene, protocol.name, t) for t in kept_t}
+        ref_keys = {t: self.reference_key(scene, t, w, h, at[t]) for t in kept_t}
         disp_keys = {t: self.reference_key(scene, t, w, h, self.display_settings) for t in kept_t}
         missing, steps = [], {}
         # the columns the video metric judges here; in a ghosting test (in any round) their runs
@@ -247,24 +251,25 @@ class Planner:
                 ts = sorted({t for c in mine for t in test.frame_times[c.label].values()})
                 made_by = {shared.get(c.label) or (run_dep[0] if c in need_run else None) for c in mine} - {None}
                 deps = tuple(sorted(made_by)) + tuple(dict.fromkeys(
-                    self._reference(spec, scene, t, w, h, s) for t in ts for s in (settings, self.display_settings)))
+                    self._reference(spec, scene, t, w, h, s) for t in ts for s in (at[t], self.display_settings)))
                 items = [{"label": c.label, "run_folder": test.run_folders[c.label], "run_key": test.run_keys[c.label],
                           "frame_times": test.frame_times[c.label], "maps_for": test.maps_for[c.label],
                           "keep": test.keep[c.label] if self.prune else None,
                           "key": test.metrics_keys[c.label], "folder": test.metrics_folders[c.label]} for c in mine]
                 gkey = task_key("metrics-of", sorted(it["key"] for it in items))
                 self.plan.tasks[gkey] = Task(gkey, "metrics", J.metrics_task,
-                                             (self.ctx, spec, w, h, items, settings, self.display_settings), deps)
+                                             (self.ctx, spec, w, h, items, {t: at[t] for t in ts}, self.display_settings), deps)
                 self._metrics_task_of.update({it["key"]: gkey for it in items})
         if self.video_final and vlabels:
             made = {c.label: self._run_task_of.get(test.run_keys[c.label]) for c in configs}
-            self._add_video(spec, scene, test, [c for c in configs if c.label in vlabels], settings, made,
+            self._add_video(spec, scene, test, [c for c in configs if c.label in vlabels], at, made,
                             ref_keys, disp_keys)
         self.plan.tests.append(test)
         return test
 
-    def _add_video(self, spec, scene, test, configs, settings, made, ref_keys, disp_keys) -> None:
-        """The JOD of each column the video metric judges, once this round's runs are made."""
+    def _add_video(self, spec, scene, test, configs, at, made, ref_keys, disp_keys) -> None:
+        """The JOD of each column the video metric judges, once this round's runs are made (`at`:
+        scene time -> its reference's settings)."""
         from study.metrics.video import VERSION
         video = self.video
         items = []
@@ -288,10 +293,11 @@ class Planner:
             return
         deps = tuple(sorted({made[it["label"]] for it in items} - {None})) + tuple(dict.fromkeys(
             self._reference(spec, scene, t, test.width, test.height, s)
-            for it in items for t in it["ts"] for s in (settings, self.display_settings)))
+            for it in items for t in it["ts"] for s in (at[t], self.display_settings)))
         gkey = task_key("video-of", sorted(it["key"] for it in items))
         self.plan.tasks[gkey] = Task(gkey, "video", V.video_task, (
-            self.ctx, spec, test.width, test.height, items, settings, self.display_settings, video.key_data(),
+            self.ctx, spec, test.width, test.height, items, {t: at[t] for it in items for t in it["ts"]},
+            self.display_settings, video.key_data(),
             test.protocol.kind), deps)
 
     def prune_runs(self, settled) -> int:
@@ -324,7 +330,7 @@ class Planner:
         """The raster against frame 0's reference at the precision of `protocol`'s test (the static one)."""
         if not self.agreement_samples:
             return
-        settings = self.settings(scene, protocol)
+        settings = self.settings(scene, protocol, 0)
         ref = self.reference_key(scene, 0, w, h, settings)
         disp = self.reference_key(scene, 0, w, h, self.display_settings)
         key = task_key("agreement", {"scene": scene.content_hash, "res": (w, h), "samples": self.agreement_samples},

@@ -16,7 +16,9 @@ uncertainty is measured, not assumed, in two parts:
     coarser bound b0 to the bound b estimates what is left of it at b: change x b / (b0 - b).
 Each test (a scene under one protocol: its static test, each ghosting protocol) has its own bound,
 since their figures need different precisions: a near-converged SSAA 16x on pipe (MSE 0.2) needs
-~0.25 LSB, a ghosting TAA (MSE ~10^2) far less, and a sequence's every frame pays for it.
+~0.25 LSB, a ghosting TAA (MSE ~10^2) far less; and within a test each instant (a ghosting
+sequence's frames) has its own: a frame's figures refine that frame's reference, the temporal RMS
+(a figure of every frame) the sequence's coarsest ones.
   1. A probe: every reference of the test at `start_bound_lsb` (8 LSB by default, a few times the
      pilot's samples).
   2. A test whose every figure is within its tolerance at the probe is settled there (`confirm`:
@@ -37,6 +39,7 @@ from __future__ import annotations
 
 import math
 
+from provenance import task_key
 from study.metrics import uncertainty as U
 
 
@@ -83,42 +86,94 @@ def drift(now: dict, before: dict, tolerances: dict, scale: float = 1.0) -> tupl
     return change, over
 
 
-def needed_level(figures: dict, tolerances: dict, level: int, most: int) -> int:
-    """The level (bound start / 2**level) a test's figures ask for, from their uncertainties at
-    `level` ((value, uncertainty) by key, as figures_of gives, the drift included): u falls in
-    proportion to the bound, so a figure asks for log2(u x MARGIN / tol) levels more. At least
-    level + 1, at most `most`."""
-    want = level + 1
-    for k, (v, u) in figures.items():
-        tol = U.tolerance(k[-1], v, tolerances)
-        if tol is None or tol <= 0 or not u:     # a relative tolerance on a figure of 0: no scale to ask for
-            continue
-        want = max(want, level + math.ceil(math.log2(u * MARGIN / tol)))
-    return min(want, most)
+def levels_asked(u: float, tol: float | None) -> int:
+    """How many levels finer a figure of uncertainty u asks for to come within tol: u falls in
+    proportion to the bound, so log2(u x MARGIN / tol), rounded up (0 with no scale to ask by: a
+    relative tolerance on a figure of 0, or no uncertainty)."""
+    if not tol or tol <= 0 or not u:
+        return 0
+    return math.ceil(math.log2(u * MARGIN / tol))
 
 
-def decide(now: dict, before: dict, levels: dict, precision, over: dict, drifts: dict) -> tuple[dict, set]:
-    """One round of the rule. `now`: test -> its figures ((value, halves' uncertainty) by key, as
-    figures_of gives) at the bound of `levels` (test -> level); `before`: test -> (bound, figures)
-    of the round before, updated here. A test whose bound did not change is left as decided; for
-    the others `over` (test -> the figures over tolerance) and `drifts` (test -> figure -> drift)
-    are set. Returns (test -> the level to render next, the tests judged this round)."""
+def level_at(levels: dict, test: tuple, t) -> int:
+    """The level of a test's references at instant t: its own (test + (t,)) where an instant was
+    refined alone, else the test's."""
+    return levels.get((*test, t), levels.get(test, 0))
+
+
+def decide(now: dict, before: dict, levels: dict, precision, over: dict, drifts: dict,
+           instants: dict | None = None) -> tuple[dict, set]:
+    """One round of the rule, instant by instant. `now`: test -> its figures ((value, halves'
+    uncertainty) by (protocol, label, frame, metric), as figures_of gives with the protocol
+    prefixed); `instants`: test -> (label, frame) -> the scene time whose reference judges that
+    frame (a figure of no frame, the temporal RMS, depends on every instant of the test);
+    `levels`: test -> level, test + (t,) -> an instant's own level; `before`: test -> ({t: bound},
+    figures) of the round before, updated here. A figure is refined where its own instants are: a
+    ghosting test whose FLIP of two frames is over renders those two frames' references again,
+    not the sequence's (at 320x180, 22 of hairball_rotating_lit's 24 frames stay at 1 LSB rather
+    than 0.5: 4x fewer samples each). A test none of whose bounds changed is left as decided; for
+    the others `over` (test -> the figures over tolerance, their uncertainty the drift included)
+    and `drifts` (test -> figure -> drift) are set. Returns (test -> {t: the level to render
+    next} for the instants to refine (t None: a test of no known instants, as a whole), the tests
+    judged this round)."""
+    instants = instants or {}
     finer, judged = {}, set()
+    most = precision.levels()
     for k in sorted(now):
-        level, figs, b = levels.get(k, 0), now[k], precision.bound(levels.get(k, 0))
-        if k in before and before[k][0] == b:
+        where = instants.get(k, {})
+        every = sorted(set(where.values()), key=repr) or [None]
+        lv = {t: level_at(levels, k, t) for t in every}
+        bounds = {t: precision.bound(lv[t]) for t in every}
+        if k in before and before[k][0] == bounds:
             continue                       # not refined this round: as decided before
         judged.add(k)
-        if level > 0 and k in before:      # what both halves share: the change from the coarser bound
-            b0 = before[k][0]
-            change, _ = drift(figs, before[k][1], precision.tolerances, b / (b0 - b))
-            drifts[k] = change
-            figs = {f: (v, u + change.get(f, 0.0)) for f, (v, u) in figs.items()}
+        prev_bounds, prev = before.get(k, ({}, {}))
+        kept = drifts.setdefault(k, {})
+        figs = {}
+        for f, (v, u) in now[k].items():
+            ts = _instants_of(f, where, every)
+            changed = [t for t in ts if t in prev_bounds and prev_bounds[t] != bounds[t]]
+            if changed and f in prev:      # what both halves share: the change from the coarser bound
+                scale = max(bounds[t] / (prev_bounds[t] - bounds[t]) for t in changed)
+                v0, u0 = prev[f]
+                kept[f] = max(0.0, abs(v - v0) - u - u0) * scale
+            figs[f] = (v, u + kept.get(f, 0.0))
         over[k] = over_tolerance(figs, precision.tolerances)
-        if (over[k] or (level == 0 and precision.confirm)) and level < precision.levels():
-            finer[k] = needed_level(figs, precision.tolerances, level, precision.levels())
-        before[k] = (b, now[k])
+        want: dict = {}
+        for f, (v, u) in figs.items():
+            ts = _instants_of(f, where, every)
+            tol = U.tolerance(f[-1], v, precision.tolerances)
+            first = all(lv[t] == 0 for t in ts) and precision.confirm
+            is_over = tol is not None and u > tol
+            if not (is_over or first):
+                continue
+            ask = max(1, levels_asked(u, tol))
+            base = min(lv[t] for t in ts)  # a figure of many instants: its coarsest ones set its noise
+            for t in ts:
+                want[t] = max(want.get(t, lv[t]), min(most, base + ask))
+        # a figure under its tolerance still asks, at an instant refined anyway, for what it needs
+        for f, (v, u) in figs.items():
+            ts = [t for t in _instants_of(f, where, every) if t in want]
+            tol = U.tolerance(f[-1], v, precision.tolerances)
+            if ts and len(ts) == len(_instants_of(f, where, every)):
+                ask = levels_asked(u, tol)
+                for t in ts:
+                    want[t] = max(want[t], min(most, lv[t] + ask))
+        step = {t: n for t, n in want.items() if n > lv[t]}
+        if step:
+            finer[k] = step
+        before[k] = (bounds, now[k])
     return finer, judged
+
+
+def _instants_of(figure: tuple, where: dict, every: list) -> list:
+    """The instants a figure ((protocol, label, frame, metric)) is judged against: its frame's, or
+    every instant of the test for a figure of no frame (or a frame no instant is known for)."""
+    t = where.get((figure[1], figure[2]), _NONE) if figure[2] is not None else _NONE
+    return every if t is _NONE else [t]
+
+
+_NONE = object()
 
 
 def to_record(levels: dict, tried: dict, over: dict, drifts: dict) -> dict:
@@ -127,6 +182,7 @@ def to_record(levels: dict, tried: dict, over: dict, drifts: dict) -> dict:
     rule decides the same (every task is deterministic), so it replays these instead of planning
     and reading every round again."""
     return {"tests": [{"test": list(k), "level": levels.get(k, 0), "tried": list(tried[k]),
+                       "instants": sorted([[x[-1], n] for x, n in levels.items() if len(x) == len(k) + 1 and x[:-1] == k]),
                        "over": [list(x) for x in over.get(k, [])],
                        "drift": [[*f, d] for f, d in drifts.get(k, {}).items()]} for k in sorted(tried)]}
 
@@ -137,6 +193,45 @@ def from_record(rec: dict) -> tuple[dict, dict, dict, dict]:
     for t in rec["tests"]:
         k = tuple(t["test"])
         levels[k], tried[k] = int(t["level"]), list(t["tried"])
+        levels.update({(*k, i): int(n) for i, n in t.get("instants", [])})
         over[k] = [tuple(x) for x in t["over"]]
         drifts[k] = {tuple(d[:-1]): d[-1] for d in t["drift"]}
     return levels, tried, over, drifts
+
+
+def bounds_text(bounds: dict) -> str:
+    """'1' for one bound (bound -> instants at it), '1 (22 instants), 0.5 (2)' for several, the
+    coarsest first."""
+    if len(bounds) == 1:
+        return f"{next(iter(bounds)):g}"
+    return ", ".join(f"{b:g} ({n}{' instants' if i == 0 else ''})"
+                     for i, (b, n) in enumerate(sorted(bounds.items(), reverse=True)))
+
+
+def _settled_path(store, precision, test: tuple, probe_refs: list):
+    key = task_key("precision-settled", {"test": list(test), "references": probe_refs, "precision": repr(precision)},
+                   code=["study.engine.precision"])
+    return store.record_path("precision", "settled", key), key
+
+
+def settle(store, precision, probes: dict, levels: dict) -> None:
+    """Each test's final level and its instants' own, filed under its probe references (test ->
+    their keys; what `settled` reads)."""
+    for k, refs in probes.items():
+        path, key = _settled_path(store, precision, k, refs)
+        rec = {"level": levels.get(k, 0),
+               "instants": sorted([[x[-1], n] for x, n in levels.items() if len(x) == len(k) + 1 and x[:-1] == k])}
+        old = store.load_record(path, key) or {}
+        if (old.get("level"), old.get("instants", [])) != (rec["level"], rec["instants"]):
+            store.save_record(path, key, rec)
+
+
+def settled(store, precision, probes: dict) -> dict:
+    """Levels (as `decide` reads them) an earlier study settled the tests at, for the tests one did."""
+    out = {}
+    for k, refs in probes.items():
+        rec = store.load_record(*_settled_path(store, precision, k, refs))
+        if rec is not None and (rec.get("level", 0) > 0 or rec.get("instants")):
+            out[k] = int(rec.get("level", 0))
+            out.update({(*k, t): int(n) for t, n in rec.get("instants", [])})
+    return out

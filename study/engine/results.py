@@ -35,6 +35,7 @@ class TestResult:
     uncertainty: dict[str, dict[int, dict]] = field(default_factory=dict)
     temporal_u: dict[str, float] = field(default_factory=dict)
     reference_bound_lsb: float = 0.0           # the per-pixel bound its references were refined to
+    reference_bounds_lsb: dict = field(default_factory=dict)   # scene time -> its reference's, where instants differ
     # ColorVideoVDP (study.metrics.video): label -> {'sequence' (a ghosting test) or a static view's
     # frame id as a string -> JOD}, bias removed, and its uncertainty
     jod: dict[str, dict] = field(default_factory=dict)
@@ -105,7 +106,8 @@ def view(full: TestResult, label: str, n: int) -> TestResult:
     v = TestResult(full.scene, label, [n], {}, dict(full.ms), temporal=dict(full.temporal),
                    stats={}, reference_keys=full.reference_keys, costs=full.costs, width=full.width,
                    height=full.height, kind="static", temporal_u=dict(full.temporal_u),
-                   reference_bound_lsb=full.reference_bound_lsb, video=dict(full.video))
+                   reference_bound_lsb=full.reference_bound_lsb, reference_bounds_lsb=dict(full.reference_bounds_lsb),
+                   video=dict(full.video))
     for l, per in full.per_frame.items():
         f = n if n in per else max(per)
         v.per_frame[l] = {n: per[f]}

@@ -48,26 +48,34 @@ class Study:
         self.ref_settings = dict(self.profile.ref_settings)
         self.precision: Precision = self.profile.precision
         self.display_settings = self.precision.display_settings(self.ref_settings)
-        # (scene name, protocol name) -> the test's precision level (study.engine.precision)
+        # (scene name, protocol name) -> the test's precision level, + (scene time,) -> an instant's
+        # own where it was refined alone (study.engine.precision)
         self.levels: dict[tuple, int] = {}
         self.drifts: dict = {}
 
-    def settings_for(self, name: str, protocol: str | None = None) -> dict:
-        """The settings of a test's references at its current precision level (the scene's static
-        test when no protocol is named: frame 0's reference, the agreement, the costs)."""
-        return self.precision.settings(self.ref_settings, self.levels.get((name, protocol or self.profile.static.name), 0))
+    def settings_for(self, name: str, protocol: str | None = None, t: int | None = None) -> dict:
+        """The settings of a test's references at its current precision level, at instant t that
+        instant's own (the scene's static test when no protocol is named: frame 0's reference, the
+        agreement, the costs)."""
+        k = (name, protocol or self.profile.static.name)
+        level = self.levels.get(k, 0) if t is None else max(self.levels.get(k, 0), P.level_at(self.levels, k, t))
+        return self.precision.settings(self.ref_settings, level)
 
-    def bound_of(self, name: str, protocol: str | None = None) -> float:
+    def bound_of(self, name: str, protocol: str | None = None, t: int | None = None) -> float:
         """The per-pixel bound a test's references are rendered to now (a study file may leave it
         to the cache's default)."""
-        return self.settings_for(name, protocol).get("se_bound_lsb", SE_BOUND_LSB)
+        return self.settings_for(name, protocol, t).get("se_bound_lsb", SE_BOUND_LSB)
+
+    def bounds_of(self, name: str, protocol: str, instants) -> dict:
+        """bound -> how many of the instants are rendered to it."""
+        return dict(Counter(self.bound_of(name, protocol, t) for t in instants))
 
     def resolution(self, scene: ResolvedScene) -> tuple[int, int]:
         r = self.profile.resolution
         return tuple(r) if isinstance(r, (tuple, list)) else scene.resolution(r)
 
     def reference(self, scene: ResolvedScene, t: int, w: int, h: int, protocol: str | None = None):
-        return self.cache.get(scene, t, w, h, **self.settings_for(scene.name, protocol))[0]
+        return self.cache.get(scene, t, w, h, **self.settings_for(scene.name, protocol, t))[0]
 
     def display(self, scene: ResolvedScene, t: int, w: int, h: int):
         """Frame t's display transform (study.engine.tasks.display_of)."""
@@ -87,8 +95,9 @@ class Study:
         `final`: the study's last round, whose references are final: the video metric's tasks too."""
         scenes = [(spec, load_scene(spec)) for spec in specs]
         protos = [self.profile.static, *self.profile.ghosting]
-        planner = Planner(self.ctx, self.ref_settings, self.profile.agreement_samples if agreement else None,
-                          {(scene.name, p.name): self.settings_for(scene.name, p.name) for _, scene in scenes for p in protos},
+        ref_of = {(scene.name, p.name): self.settings_for(scene.name, p.name) for _, scene in scenes for p in protos}
+        ref_of.update({k: self.settings_for(*k) for k in self.levels if len(k) == 3})
+        planner = Planner(self.ctx, self.ref_settings, self.profile.agreement_samples if agreement else None, ref_of,
                           self.display_settings, video=self.profile.video, video_final=final, prune=prune)
         statics, ghosts, sweeps, sharpens = [], [], [], []
         # at the thesis's history alone; named as the static test, whose references it shares
@@ -141,19 +150,22 @@ class Study:
                 if figures and memo is None:      # the probe's plan: did a study decide from it before?
                     memo = self._decisions(plan, agreement)
                     probes = {(t.scene, t.protocol.name): sorted(t.reference_tasks.values()) for t in statics + ghosts + sweeps}
-                    seeds = self._settled(probes) if seeded and not memo["replayed"] else {}
+                    seeds = P.settled(memo["store"], self.precision, probes) if seeded and not memo["replayed"] else {}
                     if seeds:
                         self.levels.update(seeds)
-                        self.log(f"precision: {len(seeds)} of {len(probes)} tests start at the bound an earlier study settled")
+                        self.log(f"precision: {len({x[:2] for x in seeds})} of {len(probes)} tests start at the bound an earlier study settled")
                         continue
                     if memo["replayed"]:
                         self.levels, tried, over, self.drifts = P.from_record(memo["replayed"])
                         self.log("precision: every test's bound as decided by an earlier study of the same tasks")
                         agree, settled = agreement, True        # the final round alone: plan it
                         continue
-                tests = {(t.scene, t.protocol.name) for t in statics + ghosts + sweeps}
-                for k in sorted(tests):
-                    b, seen = self.bound_of(*k), tried.setdefault(k, [])
+                instants: dict = {}       # test -> (label, frame) -> the scene time judging it
+                for t in statics + ghosts + sweeps:
+                    instants.setdefault((t.scene, t.protocol.name), {}).update(
+                        {(label, f): time for label, ft in t.frame_times.items() for f, time in ft.items()})
+                for k in sorted(instants):
+                    b, seen = min(self.bounds_of(*k, set(instants[k].values())) or [self.bound_of(*k)]), tried.setdefault(k, [])
                     if not seen or seen[-1] != b:
                         seen.append(b)
                 counts = plan.counts()
@@ -178,23 +190,28 @@ class Study:
                     now.setdefault((t.scene, t.protocol.name), {}).update(
                         {(t.protocol.name, *k): v for k, v in figures_of(self._result(t, results, {})).items()
                          if k[0] not in self.precision.exempt})
-                finer, judged = decide(now, before, self.levels, self.precision, over, self.drifts)
+                finer, judged = decide(now, before, self.levels, self.precision, over, self.drifts, instants)
                 # a settled test's runs drop the frames the report does not read; the others stay
                 # whole, judged again at the finer bound without being re-made
                 self.planner.prune_runs(lambda k: k not in finer)
                 for k in sorted(judged):
-                    name, b = f"{k[0]} ({k[1]})", self.bound_of(*k)
-                    nxt = f"references again at {self.precision.bound(finer[k]):g} LSB" if k in finer else ""
+                    every = set(instants[k].values())
+                    name, b = f"{k[0]} ({k[1]})", P.bounds_text(self.bounds_of(*k, every))
+                    nxt = ""
+                    if k in finer:
+                        to = Counter(self.precision.bound(n) for n in finer[k].values())
+                        nxt = "references again at " + P.bounds_text(to) + (
+                            f" ({len(finer[k])} of {len(every)} instants)" if len(finer[k]) < len(every) else "")
                     if not over[k]:
                         if k in finer:
-                            self.log(f"precision: {name}: every figure within its tolerance at the {b:g}-LSB probe; {nxt}, "
+                            self.log(f"precision: {name}: every figure within its tolerance at the {b}-LSB probe; {nxt}, "
                                      "where the figures ask for it and the drift can be measured")
                         elif len(tried.get(k, ())) == 1:
-                            first = "probe" if b == self.precision.start_bound_lsb else "first bound (an earlier study's)"
-                            self.log(f"precision: {name}: every figure within its tolerance at its {b:g}-LSB {first}: settled")
+                            first = "probe" if b == f"{self.precision.start_bound_lsb:g}" else "first bound (an earlier study's)"
+                            self.log(f"precision: {name}: every figure within its tolerance at its {b}-LSB {first}: settled")
                         continue
                     label, tech, f, m, u, tol = over[k][0]
-                    self.log(f"precision: {name}: {len(over[k])} figures over their tolerance at {b:g} LSB, the worst "
+                    self.log(f"precision: {name}: {len(over[k])} figures over their tolerance at {b} LSB, the worst "
                              f"{m} of {tech} ({label}, frame {f}) +-{u:.3g} > {tol:.3g}; "
                              + (nxt if k in finer else "the finest bound: reported"))
                 if not finer:
@@ -202,10 +219,11 @@ class Study:
                         break
                     # one more round: the agreements and the video metric alone (the rest is cached)
                     agree, settled = agreement, True
-                self.levels.update(finer)
+                self.levels.update({k if t is None else (*k, t): n for k, step in finer.items() for t, n in step.items()})
         self.planner.prune_runs(lambda k: True)
         if figures:
-            self._settle(probes)
+            from study.engine.store import Store
+            P.settle(Store(self.cache.root), self.precision, probes, self.levels)
         if memo is not None and not memo["replayed"]:
             memo["store"].save_record(memo["path"], memo["key"], P.to_record(self.levels, tried, over, self.drifts))
         from study.engine.store import Store
@@ -224,8 +242,11 @@ class Study:
                            display=lambda name, t, w, h: self.display(by_name[name], t, w, h),
                            thesis_history=self.profile.thesis_history, tolerances=self.precision.tolerances)
         out.precision = {}
+        every = {(t.scene, t.protocol.name): set(t.reference_tasks) for t in statics + ghosts + sweeps}
         for (name, proto), seen in sorted(tried.items()):
-            out.precision.setdefault(name, {})[proto] = {"bound_lsb": self.bound_of(name, proto), "rule": self.precision.rule,
+            bounds = self.bounds_of(name, proto, every.get((name, proto)) or [None])
+            out.precision.setdefault(name, {})[proto] = {"bound_lsb": min(bounds), "rule": self.precision.rule,
+                                                         "bounds": {f"{b:g}": n for b, n in sorted(bounds.items())},
                                                          "over": over.get((name, proto), []), "rounds": seen}
         out.stats = {"runs_computed": sum(len([r for r in v["runs"].values() if r["computed"]])
                                           for v in results.values() if v["kind"] == "run"),
@@ -266,31 +287,6 @@ class Study:
         path = store.record_path("precision", "decisions", key)
         return {"store": store, "path": path, "key": key, "replayed": store.load_record(path, key)}
 
-    def _settled_path(self, store, test: tuple, probe_refs: list):
-        key = task_key("precision-settled", {"test": list(test), "references": probe_refs, "precision": repr(self.precision)},
-                       code=["study.engine.precision"])
-        return store.record_path("precision", "settled", key), key
-
-    def _settle(self, probes: dict) -> None:
-        """Each test's final level, filed under its probe references (what `seeded` reads)."""
-        from study.engine.store import Store
-        store = Store(self.cache.root)
-        for k, refs in probes.items():
-            path, key = self._settled_path(store, k, refs)
-            if (store.load_record(path, key) or {}).get("level") != self.levels.get(k, 0):
-                store.save_record(path, key, {"level": self.levels.get(k, 0)})
-
-    def _settled(self, probes: dict) -> dict:
-        """test -> the level an earlier study settled it at, for the tests one did."""
-        from study.engine.store import Store
-        store = Store(self.cache.root)
-        out = {}
-        for k, refs in probes.items():
-            rec = store.load_record(*self._settled_path(store, k, refs))
-            if rec is not None and rec.get("level", 0) > 0:
-                out[k] = int(rec["level"])
-        return out
-
     def _with_drift(self, res: TestResult) -> TestResult:
         """A figure's stated uncertainty: its halves' plus its change from the coarser bound."""
         change = self.drifts.get((res.scene, res.test), {})
@@ -312,6 +308,7 @@ class Study:
         recs = self._records(test)
         res = TestResult(test.scene, test.protocol.name, [], {}, {}, width=test.width, height=test.height,
                          kind=test.protocol.kind, reference_bound_lsb=test.ref_settings.get("se_bound_lsb", SE_BOUND_LSB),
+                         reference_bounds_lsb={t: s.get("se_bound_lsb", SE_BOUND_LSB) for t, s in test.ref_settings_at.items()},
                          reference_keys={t: k for t, k in test.reference_tasks.items()})
         frames = set()
         for c in test.configs:

@@ -22,7 +22,8 @@ def video_task(ctx, scene_spec: str, w: int, h: int, items: list, ref_settings: 
                video: dict, kind: str, deps=()) -> dict:
     """items: one per technique, {run_folder, run_key, frame_times (frame id -> scene time),
     frames (the judged frame ids: a ghosting test's in order, a static test's views), key, folder}.
-    `video`: study.config.video.Video.key_data(). Returns the records by key."""
+    `ref_settings`: scene time -> its reference's settings. `video`: study.config.video.Video.key_data().
+    Returns the records by key."""
     store = _setup(ctx)
     scene = load_scene(scene_spec)
     with contextlib.ExitStack() as locks:
@@ -55,7 +56,7 @@ def _judge(store, ctx, scene, w, h, items, ref_settings, display_settings, video
         for f in frames:
             t = times[f]
             if t not in refs8:
-                ref = cache.get(scene, t, w, h, **ref_settings)[0]
+                ref = cache.get(scene, t, w, h, **ref_settings[t])[0]
                 disps[t] = display_of(cache, scene, t, w, h, display_settings)
                 refs8[t] = {hv: r[2] for hv, r in judged_references(ref, disps[t]).items()}
             try:

@@ -108,8 +108,14 @@ class Report(Summaries, Upscaling, SharpenSweep):
 
     @staticmethod
     def _precision_note(res) -> str:
-        return (f" References refined to {res.reference_bound_lsb:g} LSB per pixel (study.engine.precision). "
-                + UNCERTAINTY_NOTE)
+        bounds = sorted(set(res.reference_bounds_lsb.values()) or {res.reference_bound_lsb}, reverse=True)
+        if len(bounds) > 1:
+            n = {b: sum(1 for v in res.reference_bounds_lsb.values() if v == b) for b in bounds}
+            refined = (f"{bounds[0]:g} LSB per pixel, " + ", ".join(f"{n[b]} of its {len(res.reference_bounds_lsb)} "
+                       f"instants to {b:g}" for b in bounds[1:]))
+        else:
+            refined = f"{bounds[0]:g} LSB per pixel"
+        return f" References refined to {refined} (study.engine.precision). " + UNCERTAINTY_NOTE
 
     # -- static ------------------------------------------------------------------------------
     def static(self, res, agree: dict | None, ref, stem: str) -> None:
@@ -272,12 +278,14 @@ class Report(Summaries, Upscaling, SharpenSweep):
         for scene, per in sorted(res.precision.items()):
             for proto, p in sorted(per.items()):
                 worst = max(p["over"], key=lambda x: x[4] / x[5] if x[5] else math.inf) if p["over"] else None
-                rows.append([scene, proto, p["rule"], " → ".join(f"{b:g}" for b in p["rounds"]), f"{p['bound_lsb']:g}",
+                final = ", ".join(f"{b} ({n})" for b, n in sorted(p.get("bounds", {}).items(), key=lambda x: -float(x[0])))
+                rows.append([scene, proto, p["rule"], " → ".join(f"{b:g}" for b in p["rounds"]),
+                             final if len(p.get("bounds", {})) > 1 else f"{p['bound_lsb']:g}",
                              str(len(p["over"])),
                              "–" if worst is None else f"{worst[3]} of {worst[1]} ±{worst[4]:.2g} > {worst[5]:.2g}"])
         tol = ", ".join(f"{k} {v:g}" for k, v in sorted(res.tolerances.items()))
         note = ("Each test's references are probed at a coarse per-pixel bound, then rendered at the bound its "
-                "figures ask for and checked there, while any figure's reference uncertainty (its halves' plus its "
+                "figures ask for, instant by instant (final: bound (instants at it)), and checked there, while any figure's reference uncertainty (its halves' plus its "
                 "drift from the coarser bound) exceeds its tolerance (" + tol + "; relative and relmse as "
                 "fractions of the figure).")
         self._table("reference_precision", Table("Reference precision: bounds set by the figures",
