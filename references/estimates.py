@@ -27,7 +27,15 @@ def _cov_of_mean(reps: np.ndarray) -> np.ndarray:
     """(K, 3, 3) covariance of the mean of K sets of R independent estimates reps (K, R, 3)."""
     r = reps.shape[1]
     dev = reps - reps.mean(axis=1, keepdims=True)
-    return np.einsum("kri,krj->kij", dev, dev) / ((r - 1) * r)
+    # the six distinct products, each a contiguous dot over R: einsum("kri,krj->kij")'s sums in
+    # another order (within 1e-12), 2-5x faster (it strides over the 3 channels innermost)
+    ch = [np.ascontiguousarray(dev[:, :, i]) for i in range(3)]
+    out = np.empty((len(reps), 3, 3))
+    for i in range(3):
+        for j in range(i, 3):
+            out[:, i, j] = np.einsum("kr,kr->k", ch[i], ch[j])
+            out[:, j, i] = out[:, i, j]
+    return out / ((r - 1) * r)
 
 
 class Estimates:
@@ -60,7 +68,12 @@ class Estimates:
         self.dmean, self.dcov = self.pilot_dmean.copy(), self.pilot_dcov.copy()
         self.m = np.zeros(npix, np.int64)             # samples per replicate after the pilot
         self.slot = np.full(npix, -1, np.int64)
-        self.sums = np.zeros((0, r, 3))
+        self._sums, self._rows = np.zeros((0, r, 3)), 0   # grown by doubling: not copied every round
+
+    @property
+    def sums(self) -> np.ndarray:
+        """(rows, R, 3) each refined pixel's replicate sums (row `slot[pixel]`)."""
+        return self._sums[: self._rows]
 
     @property
     def spp(self) -> np.ndarray:
@@ -76,10 +89,14 @@ class Estimates:
         """sums (K, R, 3): each replicate's sum over its a new samples, for pixels pix."""
         new = pix[self.slot[pix] < 0]
         if len(new):
-            self.slot[new] = len(self.sums) + np.arange(len(new))
-            self.sums = np.concatenate([self.sums, np.zeros((len(new), self.r, 3))])
+            self.slot[new] = self._rows + np.arange(len(new))
+            self._rows += len(new)
+            if self._rows > len(self._sums):
+                grown = np.zeros((max(self._rows, 2 * len(self._sums)), self.r, 3))
+                grown[: len(self._sums)] = self._sums
+                self._sums = grown
         rows = self.slot[pix]
-        self.sums[rows] += sums
+        self._sums[rows] += sums
         self.m[pix] += a
         reps = self.sums[rows, self.dr] / self.m[pix, None, None]
         m = self.m[pix].astype(np.float64)
@@ -130,7 +147,7 @@ def display_se(disp: DisplayTransform, mean: np.ndarray, cov: np.ndarray) -> np.
         x = mean.copy()
         x[:, k] += h
         jac[:, :, k] = (disp.encode(x) - base) / h[:, None]
-    var = np.einsum("pck,pkl,pcl->pc", jac, cov, jac)
+    var = ((jac @ cov) * jac).sum(axis=-1)        # J cov J^T's diagonal (einsum: 2x slower)
     return np.sqrt(np.maximum(var, 0.0))
 
 

@@ -192,11 +192,19 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
                     replicates=replicates, max_spp=max_spp, seed=seed, held_out=held_out, progress=progress)
 
 
+def _deciding_runs(sets: int, deciding: int) -> tuple[int, int]:
+    """(runs, deciding runs): `sets` sets of which the first `deciding` decide, in runs of equal
+    length that do not straddle the two (one run per set where none such divides both)."""
+    size = math.gcd(sets, deciding)
+    return sets // size, deciding // size
+
+
 def converge(tracer, width: int, height: int, what: str, *, se_bound_lsb: float, target_noise_db: float,
              spp_per_pass: int, min_passes: int, replicates: int, max_spp: int, seed: int, held_out: bool,
              progress=None) -> Reference:
-    """The adaptive loop over any tracer whose `chunked(pix, r, a, rng)` yields (pixels, their r
-    set sums (n, r, 3), each set's smallest and largest sample (n, r, 3) each)."""
+    """The adaptive loop over any tracer whose `chunked(pix, r, a, rng, groups)` yields (pixels,
+    their r set sums (n, r, 3), the smallest and largest sample of each of `groups` runs of
+    consecutive sets (n, groups, 3) each)."""
     npix, r = width * height, replicates
     start = time.perf_counter()
     history = []
@@ -213,13 +221,14 @@ def converge(tracer, width: int, height: int, what: str, *, se_bound_lsb: float,
     pilot = np.empty((npix, min_passes, 3), np.float32)
     lo, hi = np.empty((npix, 3)), np.empty((npix, 3))          # the deciding samples' extremes
     lo_all, hi_all = np.empty((npix, 3)), np.empty((npix, 3))  # every sample's (the reported floor)
+    # the deciding sets lead (references.estimates): the extremes come in runs of them
+    pg, dg = _deciding_runs(min_passes, min_passes // 2 if held_out else min_passes)
     for g, sums, glo, ghi in tracer.chunked(np.arange(npix), min_passes, spp_per_pass,
-                                            np.random.default_rng([seed, 8])):
+                                            np.random.default_rng([seed, 8]), pg):
         if not np.all(np.isfinite(sums)):
             raise ReferenceError(f"{what}: the pilot produced NaN/Inf")
         pilot[g] = sums / spp_per_pass
-        dp = slice(0, min_passes // 2) if held_out else slice(0, min_passes)
-        lo[g], hi[g] = glo[:, dp].min(axis=1), ghi[:, dp].max(axis=1)
+        lo[g], hi[g] = glo[:, :dg].min(axis=1), ghi[:, :dg].max(axis=1)
         lo_all[g], hi_all[g] = glo.min(axis=1), ghi.max(axis=1)
     est = E.Estimates(pilot, spp_per_pass, r, held_out)
     del pilot
@@ -276,13 +285,14 @@ def converge(tracer, width: int, height: int, what: str, *, se_bound_lsb: float,
         # never past the cap: a set's size stays a power of two (a whole net)
         add = (2 ** np.floor(np.log2(np.minimum(add, cap - m)))).astype(np.int64)
         rng = np.random.default_rng([seed, 9, rounds])
+        rg, rdg = _deciding_runs(r, est.rd)
         for a in np.unique(add):          # one set size per group of pixels
-            for g, sums, glo, ghi in tracer.chunked(pix[add == a], r, int(a), rng):
+            for g, sums, glo, ghi in tracer.chunked(pix[add == a], r, int(a), rng, rg):
                 if not np.all(np.isfinite(sums)):
                     raise ReferenceError(f"{what}: round {rounds} produced NaN/Inf")
                 est.add(g, int(a), sums)
-                lo[g] = np.minimum(lo[g], glo[:, est.dr].min(axis=1))
-                hi[g] = np.maximum(hi[g], ghi[:, est.dr].max(axis=1))
+                lo[g] = np.minimum(lo[g], glo[:, :rdg].min(axis=1))
+                hi[g] = np.maximum(hi[g], ghi[:, :rdg].max(axis=1))
                 lo_all[g], hi_all[g] = np.minimum(lo_all[g], glo.min(axis=1)), np.maximum(hi_all[g], ghi.max(axis=1))
         dse_s[pix] = E.display_se(disp, est.dmean[pix], est.dcov[pix])
         # the floor moves where a pixel or a neighbour got samples (new extremes, or more samples)

@@ -13,10 +13,12 @@ class _Bernoulli:
     def __init__(self, p):
         self.p = p
 
-    def chunked(self, pix, r, a, rng):
+    def chunked(self, pix, r, a, rng, groups=None):
         hits = rng.binomial(a, self.p[pix][:, None], size=(len(pix), r)).astype(np.float64)
         rgb = lambda x: np.repeat(x[..., None], 3, -1)   # noqa: E731
-        yield pix, rgb(hits), rgb((hits == a) * 1.0), rgb((hits > 0) * 1.0)
+        g = groups or r        # the extremes of runs of r / g consecutive sets, as the tracer's
+        lo, hi = (x.reshape(len(pix), g, r // g, 3) for x in (rgb((hits == a) * 1.0), rgb((hits > 0) * 1.0)))
+        yield pix, rgb(hits), lo.min(axis=2), hi.max(axis=2)
 
 
 def _bias(held_out: bool, p: float = 0.1, w: int = 200, seed: int = 0):
