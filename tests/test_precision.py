@@ -388,3 +388,19 @@ def test_a_seeded_study_starts_each_test_at_the_bound_an_earlier_study_settled(t
     assert res.stats["references_rendered"] == 0 or any(len(r) > 1 for r in seeded.values())
     unseeded, _ = study([a, TechniqueConfig.parse("C=taa_baseline:sharpen=xu")], False)
     assert all(r[0] == 8.0 for r in unseeded.values())
+
+
+def test_the_ghosting_protocols_share_an_instant_s_reference_at_the_finest_level_either_asks(tmp_path):
+    """The cold and the warm ghosting tests judge the same instants: each instant is rendered once,
+    at the finer of their levels; the static test's instants (its control columns ask for finer
+    bounds every round) and another scene's stay their own."""
+    from study.engine.runner import Study
+    s = Study("quick", cache_root=tmp_path, progress=False)
+    s.levels.update({("a", "ghosting", 3): 2, ("a", "ghosting_warm", 3): 4, ("a", "ghosting_warm", 5): 1,
+                     ("a", "static", 0): 6, ("b", "ghosting", 3): 3, ("a", "ghosting"): 1})
+    assert [s.level_of("a", p, 3) for p in ("ghosting", "ghosting_warm")] == [4, 4]
+    assert s.level_of("a", "ghosting", 5) == 1 and s.level_of("a", "ghosting", 7) == 1   # the test's own
+    assert s.level_of("a", "ghosting_warm", 7) == 0 and s.level_of("a", "ghosting", 0) == 1
+    assert s.level_of("a", "static", 3) == 0 and s.level_of("b", "ghosting_warm", 3) == 3
+    assert s.settings_for("a", "ghosting", 3) == s.settings_for("a", "ghosting_warm", 3)
+    assert s.bound_of("a", "ghosting", 3) == 8.0 / 2 ** 4

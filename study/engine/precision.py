@@ -235,3 +235,14 @@ def settled(store, precision, probes: dict) -> dict:
             out[k] = int(rec.get("level", 0))
             out.update({(*k, t): int(n) for t, n in rec.get("instants", [])})
     return out
+
+
+def decisions(store, precision, plan, agreement: bool) -> dict:
+    """Where a study's precision decisions are recorded: keyed by the probe's figures (every
+    test's metrics keys: scene, techniques, code, references' settings), the rule and the code
+    that decides; with the record of an earlier study of that key, if one is there."""
+    key = task_key("precision", {"precision": repr(precision), "agreement": agreement,
+                                 "metrics": sorted(k for t in plan.tests for k in t.metrics_keys.values())},
+                   code=["study.engine.precision", "study.engine.runner"])
+    path = store.record_path("precision", "decisions", key)
+    return {"store": store, "path": path, "key": key, "replayed": store.load_record(path, key)}

@@ -57,9 +57,24 @@ class Study:
         """The settings of a test's references at its current precision level, at instant t that
         instant's own (the scene's static test when no protocol is named: frame 0's reference, the
         agreement, the costs)."""
+        return self.precision.settings(self.ref_settings, self.level_of(name, protocol, t))
+
+    def level_of(self, name: str, protocol: str | None = None, t: int | None = None) -> int:
+        """A test's precision level, at instant t that instant's own. The ghosting protocols judge
+        the same instants (the warm one after a warm-up at the first): an instant is rendered to
+        the finest level any of them asks for, one reference for all (their figures are only the
+        surer), not one at each bound. The static test keeps its own: its control columns ask for
+        finer bounds every round, and a ghosting test judged again each time would cost more
+        metrics than its references cost."""
         k = (name, protocol or self.profile.static.name)
-        level = self.levels.get(k, 0) if t is None else max(self.levels.get(k, 0), P.level_at(self.levels, k, t))
-        return self.precision.settings(self.ref_settings, level)
+        base = self.levels.get(k, 0)
+        if t is None:
+            return base
+        own = P.level_at(self.levels, k, t)
+        ghosting = [p.name for p in self.profile.ghosting]
+        if k[1] in ghosting:
+            own = max([own] + [self.levels.get((name, p, t), 0) for p in ghosting])
+        return max(base, own)
 
     def bound_of(self, name: str, protocol: str | None = None, t: int | None = None) -> float:
         """The per-pixel bound a test's references are rendered to now (a study file may leave it
@@ -148,7 +163,8 @@ class Study:
                                                                       final=settled or not figures, sharpen=sharpen,
                                                                       prune=not figures)
                 if figures and memo is None:      # the probe's plan: did a study decide from it before?
-                    memo = self._decisions(plan, agreement)
+                    from study.engine.store import Store
+                    memo = P.decisions(Store(self.cache.root), self.precision, plan, agreement)
                     probes = {(t.scene, t.protocol.name): sorted(t.reference_tasks.values()) for t in statics + ghosts + sweeps}
                     seeds = P.settled(memo["store"], self.precision, probes) if seeded and not memo["replayed"] else {}
                     if seeds:
@@ -190,7 +206,8 @@ class Study:
                     now.setdefault((t.scene, t.protocol.name), {}).update(
                         {(t.protocol.name, *k): v for k, v in figures_of(self._result(t, results, {})).items()
                          if k[0] not in self.precision.exempt})
-                finer, judged = decide(now, before, self.levels, self.precision, over, self.drifts, instants)
+                levels = {**self.levels, **{(*k, t): self.level_of(*k, t) for k in instants for t in instants[k].values()}}
+                finer, judged = decide(now, before, levels, self.precision, over, self.drifts, instants)
                 # a settled test's runs drop the frames the report does not read; the others stay
                 # whole, judged again at the finer bound without being re-made
                 self.planner.prune_runs(lambda k: k not in finer)
@@ -274,18 +291,6 @@ class Study:
         out.sweeps = [self._with_drift(self._result(t, results, costs)) for t in sweeps]
         out.sharpen_sweeps = [self._result(t, results, {}) for t in sharpens]
         return out
-
-    def _decisions(self, plan, agreement: bool) -> dict:
-        """Where this study's precision decisions are recorded: keyed by the probe's figures (every
-        test's metrics keys: scene, techniques, code, references' settings), the rule and the code
-        that decides; with the record of an earlier study of that key, if one is there."""
-        from study.engine.store import Store
-        store = Store(self.cache.root)
-        key = task_key("precision", {"precision": repr(self.precision), "agreement": agreement,
-                                     "metrics": sorted(k for t in plan.tests for k in t.metrics_keys.values())},
-                       code=["study.engine.precision", "study.engine.runner"])
-        path = store.record_path("precision", "decisions", key)
-        return {"store": store, "path": path, "key": key, "replayed": store.load_record(path, key)}
 
     def _with_drift(self, res: TestResult) -> TestResult:
         """A figure's stated uncertainty: its halves' plus its change from the coarser bound."""
