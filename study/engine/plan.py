@@ -107,6 +107,19 @@ def run_steps(schedule: list, inp) -> list:
     return [(s.t, s.prev_t if moves else None, s.frame) for s in judged_steps(schedule, inp.sampling)]
 
 
+_STEPS: dict = {}
+
+
+def _normalized_steps(scene, protocol: Protocol, schedule: list, inp, seen: tuple) -> Normalized:
+    """A run's step list, normalised for its key once per process: every precision round plans
+    the same tests again (a no-op study plans twice), and normalising a 256-step list is most of
+    what keying a run costs."""
+    memo = (scene.content_hash, protocol, seen)
+    if memo not in _STEPS:
+        _STEPS[memo] = Normalized(run_steps(schedule, inp))
+    return _STEPS[memo]
+
+
 class Planner:
     def __init__(self, ctx: T.Context, ref_settings: dict, agreement_samples: int | None,
                  ref_settings_of: dict | None = None, display_settings: dict | None = None, video=None,
@@ -185,7 +198,7 @@ class Planner:
             inp = tech.inputs
             seen = (inp.sampling, inp.cameras, tuple(sorted(inp.buffers)))
             if seen not in steps:       # the techniques of a test share a few step lists
-                steps[seen] = Normalized(run_steps(schedule, inp))
+                steps[seen] = _normalized_steps(scene, protocol, schedule, inp, seen)
             judged = judged_steps(schedule, inp.sampling)
             test.frame_times[c.label] = {s.frame: s.t for s in judged}
             # Display-space techniques see a display transform built from a reference.
@@ -316,8 +329,12 @@ class Planner:
         dropped = 0
         for (folder, key), k in keep.items():
             if k["settled"] and not k["whole"]:
+                names = {f"frame_{f:04d}.exr" for f in k["frames"]}
+                rec = self.store.done(Path(folder), key)
+                if rec is None or set(rec["files"]) <= names:     # nothing to drop: no lock to take
+                    continue
                 with self.store.lock(task_key("run-lock", key)):      # as run_task, which (re)makes it
-                    dropped += self.store.prune(Path(folder), key, {f"frame_{f:04d}.exr" for f in k["frames"]})
+                    dropped += self.store.prune(Path(folder), key, names)
         return dropped
 
     def _run_intact(self, folder: Path, key: str, verify: bool) -> bool:

@@ -360,23 +360,24 @@ class Study:
         out = {}
         by_name = {scene.name: (spec, scene) for spec, scene in scenes}
         todo = []
-        for test in statics:
-            spec, scene = by_name[test.scene]
-            recs = self._records(test)
-            for c in test.configs:
-                extra = 0.0
-                stats = (recs[c.label] or {}).get("stats") or {}
-                if stats:
-                    extra = sum(v["samples_shaded"] for v in stats.values()) / len(stats) / (test.width * test.height)
-                key = task_key("cost", {"scene": scene.content_hash, "res": (test.width, test.height),
-                                        "technique": c.key_data(), "machine": mach, "extra_spp": round(extra, 3)},
-                               code=[c.code(), "study.engine.costs"])
-                path = store.record_path("costs", test.scene, key)
-                rec = store.load_record(path, key)
-                if rec is None:
-                    todo.append((test, scene, c, extra, key, path))
-                else:
-                    out[(test.scene, c.label)] = rec
+        with code_snapshot():           # one state of the code for every cost's key
+            for test in statics:
+                spec, scene = by_name[test.scene]
+                recs = self._records(test)
+                for c in test.configs:
+                    extra = 0.0
+                    stats = (recs[c.label] or {}).get("stats") or {}
+                    if stats:
+                        extra = sum(v["samples_shaded"] for v in stats.values()) / len(stats) / (test.width * test.height)
+                    key = task_key("cost", {"scene": scene.content_hash, "res": (test.width, test.height),
+                                            "technique": c.key_data(), "machine": mach, "extra_spp": round(extra, 3)},
+                                   code=[c.code(), "study.engine.costs"])
+                    path = store.record_path("costs", test.scene, key)
+                    rec = store.load_record(path, key)
+                    if rec is None:
+                        todo.append((test, scene, c, extra, key, path))
+                    else:
+                        out[(test.scene, c.label)] = rec
         if todo:
             from tqdm import tqdm
             refs, sources = {}, C.Sources()
