@@ -237,6 +237,9 @@ def test_a_ghosting_test_refines_the_instants_its_figures_are_over_at_and_the_te
     assert decide({G: {f0: (0.1, 0.5e-4)}}, before, levels, p, over, drifts, inst) == ({}, set())
     finer, _ = decide({G: {**probe, tr: (10.0, 0.05)}}, {}, {}, p, {}, {}, inst)
     assert finer == {G: {10: 2, 11: 2, 12: 3}}
+    from study.engine.precision import bounds_text     # how the log and the table print them
+    assert bounds_text({0.5: 2, 1.0: 22}) == "1 (22 instants), 0.5 (2)"
+    assert bounds_text({2.0: 1, 1.0: 3}) == "2 (1 instant), 1 (3)" and bounds_text({4.0: 5}) == "4"
 
 
 def test_snr_is_derived_from_the_corrected_mse_as_psnr_is():

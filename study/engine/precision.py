@@ -201,10 +201,14 @@ def from_record(rec: dict) -> tuple[dict, dict, dict, dict]:
 
 def bounds_text(bounds: dict) -> str:
     """'1' for one bound (bound -> instants at it), '1 (22 instants), 0.5 (2)' for several, the
-    coarsest first."""
+    coarsest first.
+
+    >>> bounds_text({0.5: 2, 1.0: 22}), bounds_text({2.0: 1, 1.0: 3}), bounds_text({4.0: 5})
+    ('1 (22 instants), 0.5 (2)', '2 (1 instant), 1 (3)', '4')
+    """
     if len(bounds) == 1:
         return f"{next(iter(bounds)):g}"
-    return ", ".join(f"{b:g} ({n}{' instants' if i == 0 else ''})"
+    return ", ".join(f"{b:g} ({n}{(' instant' if n == 1 else ' instants') if i == 0 else ''})"
                      for i, (b, n) in enumerate(sorted(bounds.items(), reverse=True)))
 
 

@@ -221,11 +221,11 @@ class Study:
                             f" ({len(finer[k])} of {len(every)} instants)" if len(finer[k]) < len(every) else "")
                     if not over[k]:
                         if k in finer:
-                            self.log(f"precision: {name}: every figure within its tolerance at the {b}-LSB probe; {nxt}, "
+                            self.log(f"precision: {name}: every figure within its tolerance at the probe ({b} LSB); {nxt}, "
                                      "where the figures ask for it and the drift can be measured")
                         elif len(tried.get(k, ())) == 1:
                             first = "probe" if b == f"{self.precision.start_bound_lsb:g}" else "first bound (an earlier study's)"
-                            self.log(f"precision: {name}: every figure within its tolerance at its {b}-LSB {first}: settled")
+                            self.log(f"precision: {name}: every figure within its tolerance at its {first} ({b} LSB): settled")
                         continue
                     label, tech, f, m, u, tol = over[k][0]
                     self.log(f"precision: {name}: {len(over[k])} figures over their tolerance at {b} LSB, the worst "
