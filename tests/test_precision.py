@@ -321,9 +321,11 @@ def test_a_test_within_tolerance_at_the_probe_settles_there_unless_confirm_asks_
 
 @pytest.mark.long(seconds=25)
 def test_a_study_of_the_same_tasks_replays_the_precision_decisions(tmp_path, monkeypatch):
-    """A no-op study plans its probe and its final round only (the rounds between are the earlier
-    study's decisions, recorded), and states the same bounds, drifts and figures as a study that
-    decides afresh; an edited technique's probe is a new key, so it decides afresh."""
+    """A no-op study plans its final round alone (its inputs — profile, scenes, columns, code — are
+    an earlier study's, whose decisions are recorded under its probe's keys), and states the same
+    bounds, drifts and figures as a study that decides afresh. Relabelled columns are other inputs
+    but the same probe: probe and final plans, the probe's record replayed; an edited technique's
+    probe is a new key, so it decides afresh."""
     from study_fixtures import write_scenes
     from study.config.profile import get_profile
     from study.config.techniques import TechniqueConfig
@@ -351,7 +353,7 @@ def test_a_study_of_the_same_tasks_replays_the_precision_decisions(tmp_path, mon
     # probed, then refined, then the agreement against the final references
     assert n1 >= 3 and min(len(r) for r in rounds.values()) >= 2 and plans[-1], (n1, rounds)
     again, figs2, n2, drifts2 = study()
-    assert n2 == 2 and again.stats["tasks"] == {} and again.agreements == first.agreements
+    assert n2 == 1 and again.stats["tasks"] == {} and again.agreements == first.agreements
     assert again.stats["task_seconds"] == {}                # nothing ran, nothing timed
     assert again.precision == first.precision and drifts2 == drifts1 and figs2 == figs1
     # afresh (the record removed): the same decisions, from the rounds themselves

@@ -250,3 +250,35 @@ def decisions(store, precision, plan, agreement: bool) -> dict:
                    code=["study.engine.precision", "study.engine.runner"])
     path = store.record_path("precision", "decisions", key)
     return {"store": store, "path": path, "key": key, "replayed": store.load_record(path, key)}
+
+
+def inputs_key(study, specs, configs, flags: list) -> str:
+    """What a study's probe plan is made from, keyed without planning it: the profile (protocols,
+    settings, precision), each scene's content, each column's technique and the code of what
+    plans, renders, runs and judges. The same inputs plan the same probe, whose decisions an
+    earlier study recorded (`decisions`): a no-op study then plans its final round alone."""
+    from study.engine.plan import CODE
+    from study.engine.tasks import load_scene
+    cols = [*configs, *flags[1], *flags[3]]             # the columns, the sweep's and the sharpen sweep's
+    return task_key("precision-inputs", {"profile": repr(study.profile), "flags": [bool(f) for f in flags],
+                                         "scenes": [(s, load_scene(s).content_hash) for s in specs],
+                                         "columns": [(c.label, c.key_data()) for c in cols]},
+                    code=[*{c.code() for c in cols}, *CODE["run"], *CODE["metrics"], *CODE["reference"],
+                          "study.engine.plan", "study.engine.precision", "study.engine.runner"])
+
+
+def recall(store, inputs: str) -> dict | None:
+    """The decisions record (as `decisions` returns it) an earlier study of these inputs made."""
+    rec = store.load_record(store.record_path("precision", "inputs", inputs), inputs)
+    if rec is None:
+        return None
+    path = store.record_path("precision", "decisions", rec["decisions"])
+    replayed = store.load_record(path, rec["decisions"])
+    return None if replayed is None else {"store": store, "path": path, "key": rec["decisions"], "replayed": replayed}
+
+
+def remember(store, inputs: str | None, decisions_key: str) -> None:
+    """File which decisions record these inputs' probe is keyed to (what `recall` reads)."""
+    path = store.record_path("precision", "inputs", inputs) if inputs else None
+    if path is not None and (store.load_record(path, inputs) or {}).get("decisions") != decisions_key:
+        store.save_record(path, inputs, {"decisions": decisions_key})

@@ -61,11 +61,8 @@ class Study:
 
     def level_of(self, name: str, protocol: str | None = None, t: int | None = None) -> int:
         """A test's precision level, at instant t that instant's own. The ghosting protocols judge
-        the same instants (the warm one after a warm-up at the first): an instant is rendered to
-        the finest level any of them asks for, one reference for all (their figures are only the
-        surer), not one at each bound. The static test keeps its own: its control columns ask for
-        finer bounds every round, and a ghosting test judged again each time would cost more
-        metrics than its references cost."""
+        the same instants: one reference each, at the finest level any of them asks for. The static
+        test keeps its own (its controls ask for finer bounds every round: see the README)."""
         k = (name, protocol or self.profile.static.name)
         base = self.levels.get(k, 0)
         if t is None:
@@ -155,7 +152,13 @@ class Study:
         figures = self.precision.rule == "figures"
         # the agreement (64-256 raster frames a scene) only against the static test's final references
         agree, settled = agreement and not figures, False
-        memo = None                   # the record of this study's decisions (figures rule)
+        memo, probes = None, None     # the record of this study's decisions (figures rule)
+        from study.engine.store import Store
+        inputs = P.inputs_key(self, specs, configs, [agreement, sweep, ghosting, sharpen, seeded]) if figures else None
+        if inputs and (memo := P.recall(Store(self.cache.root), inputs)):    # no probe plan needed
+            self.levels, tried, over, self.drifts = P.from_record(memo["replayed"])
+            self.log("precision: every test's bound as decided by an earlier study of the same inputs")
+            agree, settled = agreement, True
         with Session(self.executor, self.log) as session:     # one cluster for every round
             while True:
                 with code_snapshot():
@@ -163,7 +166,6 @@ class Study:
                                                                       final=settled or not figures, sharpen=sharpen,
                                                                       prune=not figures)
                 if figures and memo is None:      # the probe's plan: did a study decide from it before?
-                    from study.engine.store import Store
                     memo = P.decisions(Store(self.cache.root), self.precision, plan, agreement)
                     probes = {(t.scene, t.protocol.name): sorted(t.reference_tasks.values()) for t in statics + ghosts + sweeps}
                     seeds = P.settled(memo["store"], self.precision, probes) if seeded and not memo["replayed"] else {}
@@ -238,12 +240,12 @@ class Study:
                     agree, settled = agreement, True
                 self.levels.update({k if t is None else (*k, t): n for k, step in finer.items() for t, n in step.items()})
         self.planner.prune_runs(lambda k: True)
-        if figures:
-            from study.engine.store import Store
+        if probes is not None:
             P.settle(Store(self.cache.root), self.precision, probes, self.levels)
         if memo is not None and not memo["replayed"]:
             memo["store"].save_record(memo["path"], memo["key"], P.to_record(self.levels, tried, over, self.drifts))
-        from study.engine.store import Store
+        if memo is not None:
+            P.remember(memo["store"], inputs, memo["key"])
         Store(self.cache.root).save_hashes()
         results: dict = {}
         for _, r in rounds:       # a task's first round is the one that computed it; later ones find it cached
