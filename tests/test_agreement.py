@@ -47,3 +47,42 @@ def test_cli_bad_scene_file_exits_nonzero_naming_the_field(tmp_path):
     r = CliRunner().invoke(main, ["agree", "--scene", str(bad)])
     assert r.exit_code == 2
     assert "bad.toml" in r.output and "camera.yfov_deg" in r.output and "500" in r.output
+
+
+def _agreement(**kw):
+    from study.engine.agreement import Agreement
+    base = dict(scene="s", frame=0, width=8, height=8, agreement_psnr_db=50.0, relative_mse=0.0,
+                interior_max_abs_err=0.0, interior_pixels=64, centre_match_fraction=1.0,
+                reference_noise_psnr_db=60.0, reference_spp=64, reference_seconds=0.0, reference_cached=False,
+                raster_samples=256, raster_seconds=0.0, single_sample=True)
+    return Agreement(**{**base, **kw})
+
+
+def test_agreement_targets_follow_the_references_precision_rule():
+    """A reference rendered to what a study's figures need (the figures rule) has no noise target of
+    its own: its noise is removed with its halves and carried as the agreement's ±, so a noisy
+    reference misses nothing there, while a per-pixel one below 55 dB does. The 45-dB floor must hold
+    at the lower end of that ±."""
+    floor = TARGETS["agreement_psnr_db"]
+    noisy = dict(reference_noise_psnr_db=44.0, reference_over_bound=12)
+    assert not _agreement(**noisy).meets_targets()["reference_noise_psnr_db"]
+    assert not _agreement(**noisy).meets_targets()["reference_bound"]
+    met = _agreement(**noisy, reference_rule="figures").meets_targets()
+    assert met["reference_noise_psnr_db"] and met["reference_bound"] and all(met.values())
+    assert _agreement(agreement_psnr_db=floor + 0.2, agreement_u_db=0.1).meets_targets()["agreement_psnr_db"]
+    assert not _agreement(agreement_psnr_db=floor + 0.05, agreement_u_db=0.1).meets_targets()["agreement_psnr_db"]
+    from study.reporting.findings_text import agreement_line, agreement_missed
+    d = _agreement(agreement_psnr_db=floor - 2.0, agreement_u_db=0.1, reference_rule="figures", **noisy).as_dict()
+    assert agreement_missed(d) == [f"agreement {floor - 2:.2f} ± 0.1 dB < {floor:g} dB"]
+    assert "removed with its halves" in agreement_line(d)
+
+
+@pytest.mark.long(seconds=3)
+def test_a_figures_rule_reference_is_judged_as_one(tmp_path):
+    """The study's settings under the figures rule (no noise target, held out) mark the check so."""
+    a = check_agreement(get_scene("pipe"), 32, 18, samples=16, cache=ReferenceCache(tmp_path), progress=False,
+                        se_bound_lsb=4.0, target_noise_db=0.0, held_out=True)
+    assert a.reference_rule == "figures" and a.reference_se_bound_lsb == 4.0
+    assert a.meets_targets()["reference_noise_psnr_db"]
+    b = check_agreement(get_scene("pipe"), 32, 18, samples=16, cache=ReferenceCache(tmp_path), progress=False)
+    assert b.reference_rule == "per_pixel"

@@ -127,7 +127,9 @@ def agreement_missed(agree: dict | None) -> list[str]:
     from study.config.defaults import AGREEMENT_TARGETS as TARGETS
     met, out = agree.get("targets_met", {}), []
     if met.get("agreement_psnr_db") is False:
-        out.append(f"agreement {agree['agreement_psnr_db']:.2f} dB < {TARGETS['agreement_psnr_db']:g} dB")
+        u = agree.get("agreement_u_db") or 0.0
+        out.append(f"agreement {agree['agreement_psnr_db']:.2f}" + (f" ± {u:.2g}" if u else "")
+                   + f" dB < {TARGETS['agreement_psnr_db']:g} dB")
     if met.get("interior_max_abs_err") is False:
         out.append(f"interior error {agree['interior_max_abs_err']:.2g} > {TARGETS['interior_max_abs_err']:g}")
     if met.get("reference_noise_psnr_db") is False:
@@ -152,5 +154,7 @@ def agreement_line(agree: dict | None) -> str:
     return (f"Raster against reference: {agree['agreement_psnr_db']:.2f} dB"
             + (f" ± {u:.2g}" if u else "") + f" (target ≥ {TARGETS['agreement_psnr_db']:g} dB) over the mean of "
             f"{agree['raster_samples']} jittered raster frames; reference at {agree['reference_se_bound_lsb']:g} LSB "
-            f"per pixel, {agree['reference_spp']} spp, noise {agree['reference_noise_psnr_db']:.1f} dB. "
+            f"per pixel, {agree['reference_spp']} spp, noise {agree['reference_noise_psnr_db']:.1f} dB"
+            + (" (removed with its halves; its share of the figure is the ±)" if agree.get("reference_rule") == "figures"
+               else "") + ". "
             + ("Targets missed: " + "; ".join(missed) + "." if missed else "Every target met."))

@@ -100,9 +100,11 @@ class Report(Summaries, Upscaling, SharpenSweep):
             return ""
         from study.reporting.findings_text import agreement_missed
         missed = agreement_missed(agree)
+        u = agree.get("agreement_u_db") or 0.0
+        removed = " (removed with its halves)" if agree.get("reference_rule") == "figures" else ""
         return (f"Reference agreement (raster mean of {agree['raster_samples']} jittered frames vs reference): "
-                f"{agree['agreement_psnr_db']:.1f} dB; reference noise {agree['reference_noise_psnr_db']:.1f} dB "
-                f"at {agree['reference_spp']} spp"
+                f"{agree['agreement_psnr_db']:.1f}" + (f" ± {u:.1g}" if u >= 0.05 else "") + " dB; reference noise "
+                f"{agree['reference_noise_psnr_db']:.1f} dB at {agree['reference_spp']} spp{removed}"
                 + (f" – below its target ({'; '.join(missed)}): every figure of this scene carries that error." if missed
                    else ""))
 
