@@ -252,3 +252,36 @@ def test_flip_memo_keeps_the_reference_half_and_changes_no_bit():
             assert got_mean == want_mean and np.array_equal(got_map, want_map), mode
     n_exp = F.exposures(ref)[2]
     assert len([k for k in memo if k[0] == "HDR"]) == n_exp and len([k for k in memo if k[0] == "LDR"]) == 1
+
+
+def test_one_image_against_several_references_changes_no_bit():
+    """A technique frame is judged against the reference and its two halves with its own half of
+    SSIM (moments) and FLIP (filtered planes) computed once, the references' kept in their memos
+    across images (study.metrics.suite.all_metrics_against): every figure and map equals
+    all_metrics pair by pair, bit for bit, and the shared halves are really shared."""
+    rng = np.random.default_rng(11)
+    h, w = 33, 50
+    lin = [(rng.random((h, w, 3)) ** 2 * 3).astype(np.float32) for _ in range(2)]
+    lin.append(lin[0].copy())          # a reference equal to another: its HDR exposures are shared
+    refs = [(r, (r / (1 + r)) ** (1 / 2.2), np.round((r / (1 + r)) ** (1 / 2.2) * 255).astype(np.uint8), {})
+            for r in lin]
+    for s in (0.05, 0.3):
+        x_lin = (lin[0] * (1 + s * rng.standard_normal(lin[0].shape))).clip(0).astype(np.float32)
+        x_disp = (x_lin / (1 + x_lin)) ** (1 / 2.2)
+        x8 = np.round(x_disp * 255).astype(np.uint8)
+        got = metrics.all_metrics_against(refs, x_lin, x_disp, x8, want_maps=[True, False, True])
+        for (r_lin, r_disp, r8, _), (figs, maps), keep in zip(refs, got, (True, False, True)):
+            want, want_maps = metrics.all_metrics(r_lin, r_disp, r8, x_lin, x_disp, x8)
+            assert figs == want
+            assert set(maps) == (set(want_maps) if keep else set())
+            for k in maps:
+                assert np.array_equal(maps[k], want_maps[k]), k
+    assert all(any(k[0] == "ssim" for k in r[3]) for r in refs)     # the references' moments kept
+    from study.metrics import flip as F
+    xmemo = {}
+    for r in refs:
+        F.flip(r[0], x_lin, "HDR", memo=r[3], xmemo=xmemo)
+    n0, n1 = (F.exposures(lin[i])[2] for i in (0, 1))
+    assert len(xmemo) < n0 + n1 + n0                # the copy's exposures reuse the first's halves
+    with pytest.raises(ValueError, match="NaN"):
+        metrics.all_metrics_against(refs, np.full_like(x_lin, np.nan), x_disp, x8)

@@ -3,8 +3,9 @@
 One task per (scene, protocol) judges every technique of the test whose metrics are missing, frame
 by frame. Each reference is read, display-encoded and quantised once for all of them (at 1600x900
 reading and encoding a reference costs about as much as the metrics of one technique-frame), and
-FLIP's reference half (its exposures and filtered planes) is computed once per reference
-(study.metrics.flip's memo); a technique's frames are read one at a time. Each technique's metrics are
+the reference's half of SSIM and FLIP (its moments; its exposures and filtered planes) is computed
+once per reference (their memos), a technique frame's own half once for the reference and its
+two halves (study.metrics.suite.all_metrics_against); a technique's frames are read one at a time. Each technique's metrics are
 still filed under their own key (its run, the references and the metric code), so a technique
 added to a study is judged alone, and a key another task already judges is left to it (study.engine.plan).
 
@@ -95,7 +96,7 @@ def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict, display_set
         # one transform for all three; at a test's probe the reference is the probe: not read twice
         disp = (DisplayTransform.from_reference(ref.image) if display_settings == ref_settings[t]
                 else display_of(cache, scene, t, w, h, display_settings))
-        refs = {hv: (*r, {}) for hv, r in judged_references(ref, disp).items()}   # {}: FLIP's memo
+        refs = {hv: (*r, {}) for hv, r in judged_references(ref, disp).items()}   # {}: SSIM's and FLIP's memo
         for i, f in sorted(by_time[t]):
             it, run, st = items[i], runs[i], state[i]
             try:
@@ -105,11 +106,11 @@ def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict, display_set
                 raise TaskError(f"{exc}: the run was invalidated; run the study again to re-make it") from None
             x = np.stack([ch[c] for c in "RGB"], -1)
             x_lin, x_disp, x8 = disp.output(x, run["output_space"])
+            keep = [hv == "" and f in it["maps_for"] for hv in refs]
+            judged = M.all_metrics_against(list(refs.values()), x_lin, x_disp, x8, want_maps=keep)
             figs = {}
-            for hv, (lin, d, r8, memo) in refs.items():
-                keep = hv == "" and f in it["maps_for"]
-                figs[hv], maps = M.all_metrics(lin, d, r8, x_lin, x_disp, x8, want_maps=keep, memo=memo)
-                if keep:
+            for (hv, (_, _, r8, _)), (figs[hv], maps), k in zip(refs.items(), judged, keep):
+                if k:
                     st["maps"][f"maps_{f:04d}.exr"] = maps
                 st["temporal"][hv].add(r8, x8)
             st["per_frame"][str(f)], st["uncertainty"][str(f)] = U.jackknife(figs[""], figs["a"], figs["b"])

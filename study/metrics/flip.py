@@ -294,8 +294,18 @@ def ldr_flip_linear(lay: jf.Layout, ref_rgb, test_rgb, c: _Consts, ref_half=None
 
 @dr.freeze
 def _against(lay: jf.Layout, fr, feat_r, test_rgb, c: _Consts):
-    F64 = _pow_type()
     ft, feat_t = _filtered(lay, test_rgb, c)
+    return _difference(fr, feat_r, ft, feat_t, c)
+
+
+@dr.freeze
+def _between(lay: jf.Layout, fr, feat_r, ft, feat_t, c: _Consts):
+    """_against with the test image's half given (one test image judged against several references)."""
+    return _difference(fr, feat_r, ft, feat_t, c)
+
+
+def _difference(fr, feat_r, ft, feat_t, c: _Consts):
+    F64 = _pow_type()
     colour = _colour_difference(fr, ft, c, F64)
     ed = dr.abs(feat_r[0] - feat_t[0])
     pd = dr.abs(feat_r[1] - feat_t[1])
@@ -341,12 +351,14 @@ def exposures(ref_lin: np.ndarray) -> tuple[f32, f32, int]:
 
 
 def flip(ref: np.ndarray, x: np.ndarray, mode: str, ppd: float | None = None,
-         memo: dict | None = None) -> tuple[float, np.ndarray]:
+         memo: dict | None = None, xmemo: dict | None = None) -> tuple[float, np.ndarray]:
     """(mean, per-pixel map (H, W) float32) of FLIP 'LDR' (sRGB display images in [0, 1]) or 'HDR'
     (linear, non-negative) -- the contract of flip_evaluator.evaluate(ref, x, mode).
 
     `memo`: a dict kept by a caller that judges several images against this one reference (and
-    only this one): the reference's half of the work (exposures, filtered planes) is kept in it."""
+    only this one): the reference's half of the work (exposures, filtered planes) is kept in it.
+    `xmemo`: the same for `x` judged against several references: its half at each exposure is
+    kept (LDR: one; HDR: one per exposure value, shared where two references' exposures agree)."""
     _check(ref, x)
     c = consts(ppd)
     h, w = ref.shape[:2]
@@ -359,10 +371,18 @@ def flip(ref: np.ndarray, x: np.ndarray, mode: str, ppd: float | None = None,
             memo[k] = _filtered(lay, rgb_of_ref(), c)
         return memo[k]
 
+    def against(rh, key, rgb_of_x):
+        if xmemo is None:
+            return ldr_flip_linear(lay, None, rgb_of_x(), c, rh)
+        k = (mode, key, float(c.ppd))
+        if k not in xmemo:
+            xmemo[k] = _filtered(lay, rgb_of_x(), c)
+        return _between(lay, *rh, *xmemo[k], c)
+
     if mode == "LDR":
         def linear(img):
             return [dr.clip(_srgb_to_linear(p, _pow_type()), 0.0, 1.0) for p in _planes(lay, img)]
-        err = ldr_flip_linear(lay, None, linear(x), c, ref_half("ldr", lambda: linear(ref)))
+        err = against(ref_half("ldr", lambda: linear(ref)), "ldr", lambda: linear(x))
     elif mode == "HDR":
         if ("exposures", "HDR") not in memo:
             memo[("exposures", "HDR")] = exposures(ref)
@@ -373,7 +393,7 @@ def flip(ref: np.ndarray, x: np.ndarray, mode: str, ppd: float | None = None,
         for i in range(n):
             e = start + f32(i) * step
             m = float(_f32_of(2.0 ** float(e)))
-            ei = ldr_flip_linear(lay, None, _aces(tp, m), c, ref_half(i, lambda: _aces(_planes(lay, ref), m)))
+            ei = against(ref_half(i, lambda: _aces(_planes(lay, ref), m)), m, lambda: _aces(tp, m))
             err = ei if err is None else dr.maximum(err, ei)
             dr.eval(err)
     else:

@@ -113,6 +113,32 @@ def all_metrics(ref_lin: np.ndarray, ref_disp: np.ndarray, ref8: np.ndarray,
     return out, (maps if want_maps else {})
 
 
+def all_metrics_against(refs: list, x_lin: np.ndarray | None, x_disp: np.ndarray, x8: np.ndarray,
+                        want_maps: list | None = None) -> list:
+    """all_metrics of one image against each reference of `refs` ((linear, display, 8-bit, memo)
+    each: the reference and its two halves), the image's own half of SSIM and FLIP computed once
+    for all of them. Same values as all_metrics (tested). `want_maps`: a flag per reference."""
+    for name, a in [("technique", x_lin), ("technique display", x_disp)] + [("reference", r[0]) for r in refs]:
+        if a is not None and not np.all(np.isfinite(a)):
+            raise ValueError(f"{name} image holds {int(np.count_nonzero(~np.isfinite(a)))} NaN/Inf values")
+    want_maps = want_maps or [True] * len(refs)
+    ssims = S.ssim_against([r[2] for r in refs], x8, [r[3] for r in refs])
+    xmemo: dict = {}
+    out = []
+    for (ref_lin, ref_disp, ref8, memo), (s, smap, s_vol), keep in zip(refs, ssims, want_maps):
+        m = mse(ref8, x8)
+        fl, fmap = F.flip(ref_disp, x_disp, "LDR", memo=memo, xmemo=xmemo)
+        figs = {"mse": m, "rmsd": math.sqrt(m), "psnr": psnr_from_mse(m), "snr": snr(ref8, x8), "ssim": s,
+                "ssim_volume": s_vol, "flip_ldr": fl, "flip_hdr": None, "relmse_hdr": None}
+        maps = {"ssim": smap, "flip_ldr": fmap}
+        if x_lin is not None:
+            figs["flip_hdr"], maps["flip_hdr"] = F.flip(np.maximum(ref_lin, 0), np.maximum(x_lin, 0), "HDR",
+                                                        memo=memo, xmemo=xmemo)
+            figs["relmse_hdr"] = relmse(ref_lin, x_lin)
+        out.append((figs, maps if keep else {}))
+    return out
+
+
 class TemporalInstability:
     """RMS (8-bit units) of the error of frame-to-frame differences against the reference's:
     flicker and ghost trails raise it, a stable sequence that follows the reference keeps it low.
