@@ -285,22 +285,9 @@ def _filtered(lay: jf.Layout, rgb, c: _Consts):
     return out
 
 
-def ldr_flip_linear(lay: jf.Layout, ref_rgb, test_rgb, c: _Consts, ref_half=None):
-    """FLIP error map (flat float32 array in `lay`) of two linear RGB images in [0, 1] (lists of
-    three flat arrays). `ref_half`: the reference's _filtered, if already computed."""
-    fr, feat_r = ref_half if ref_half is not None else _filtered(lay, ref_rgb, c)
-    return _against(lay, fr, feat_r, test_rgb, c)
-
-
-@dr.freeze
-def _against(lay: jf.Layout, fr, feat_r, test_rgb, c: _Consts):
-    ft, feat_t = _filtered(lay, test_rgb, c)
-    return _difference(fr, feat_r, ft, feat_t, c)
-
-
 @dr.freeze
 def _between(lay: jf.Layout, fr, feat_r, ft, feat_t, c: _Consts):
-    """_against with the test image's half given (one test image judged against several references)."""
+    """FLIP map of two images' filtered halves (each half computed once, however many pairs it joins)."""
     return _difference(fr, feat_r, ft, feat_t, c)
 
 
@@ -364,6 +351,7 @@ def flip(ref: np.ndarray, x: np.ndarray, mode: str, ppd: float | None = None,
     h, w = ref.shape[:2]
     lay = jf.Layout(h, w)
     memo = {} if memo is None else memo
+    xmemo = {} if xmemo is None else xmemo
 
     def ref_half(key, rgb_of_ref):
         k = (mode, key, float(c.ppd))
@@ -372,8 +360,6 @@ def flip(ref: np.ndarray, x: np.ndarray, mode: str, ppd: float | None = None,
         return memo[k]
 
     def against(rh, key, rgb_of_x):
-        if xmemo is None:
-            return ldr_flip_linear(lay, None, rgb_of_x(), c, rh)
         k = (mode, key, float(c.ppd))
         if k not in xmemo:
             xmemo[k] = _filtered(lay, rgb_of_x(), c)
