@@ -18,6 +18,7 @@ the map in float32, one pixel after another, which at 1600x900 is itself off by 
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -353,33 +354,30 @@ def flip(ref: np.ndarray, x: np.ndarray, mode: str, ppd: float | None = None,
     memo = {} if memo is None else memo
     xmemo = {} if xmemo is None else xmemo
 
-    def ref_half(key, rgb_of_ref):
+    def half(store, key, rgb_of):
         k = (mode, key, float(c.ppd))
-        if k not in memo:
-            memo[k] = _filtered(lay, rgb_of_ref(), c)
-        return memo[k]
+        if k not in store:
+            store[k] = _filtered(lay, rgb_of(), c)
+        return store[k]
 
-    def against(rh, key, rgb_of_x):
-        k = (mode, key, float(c.ppd))
-        if k not in xmemo:
-            xmemo[k] = _filtered(lay, rgb_of_x(), c)
-        return _between(lay, *rh, *xmemo[k], c)
+    def pair(key_r, rgb_of_ref, key_x, rgb_of_x):
+        return _between(lay, *half(memo, key_r, rgb_of_ref), *half(xmemo, key_x, rgb_of_x), c)
 
     if mode == "LDR":
         def linear(img):
             return [dr.clip(_srgb_to_linear(p, _pow_type()), 0.0, 1.0) for p in _planes(lay, img)]
-        err = against(ref_half("ldr", lambda: linear(ref)), "ldr", lambda: linear(x))
+        err = pair("ldr", lambda: linear(ref), "ldr", lambda: linear(x))
     elif mode == "HDR":
         if ("exposures", "HDR") not in memo:
             memo[("exposures", "HDR")] = exposures(ref)
         start, stop, n = memo[("exposures", "HDR")]
         step = (stop - start) / f32(n - 1)
-        tp = _planes(lay, x)
+        x_planes = functools.cache(lambda: _planes(lay, x))    # uploaded only where a half is missing
         err = None
         for i in range(n):
             e = start + f32(i) * step
             m = float(_f32_of(2.0 ** float(e)))
-            ei = against(ref_half(i, lambda: _aces(_planes(lay, ref), m)), m, lambda: _aces(tp, m))
+            ei = pair(i, lambda: _aces(_planes(lay, ref), m), m, lambda: _aces(x_planes(), m))
             err = ei if err is None else dr.maximum(err, ei)
             dr.eval(err)
     else:
