@@ -155,3 +155,43 @@ def test_under_the_figures_rule_a_run_is_made_once_over_every_round_and_pruned_o
         assert len(names) <= 2 and len(rec.get("pruned", [])) in (0, 14), (done, names)
         assert all((done.parent / n).exists() for n in names)
         assert not any((done.parent / n).exists() for n in rec.get("pruned", []))
+
+
+def test_a_test_judged_again_takes_the_figures_of_frames_whose_references_did_not_change(tmp_path, monkeypatch):
+    """Under the figures' rule a ghosting test is judged again each round some of its instants are
+    refined; a frame whose reference and display transform are the ones an earlier round judged it
+    against keeps its figures (study.engine.judge.FrameFigures). Every figure, uncertainty, drift
+    and decision is the one judging every frame afresh gives, and exactly the frames of unchanged
+    instants were taken (each judged once per reference: the number of all_metrics_against calls)."""
+    from study.config.profile import get_profile
+    from study.config.techniques import TechniqueConfig
+    from study.engine import judge as J
+    from study.engine.runner import Study
+    from study.metrics import suite as M
+    scenes = write_scenes(tmp_path)[:1]
+    configs = [TechniqueConfig.parse(s) for s in ("taa_baseline", "noaa")]
+    calls, logs = [], []
+    real = M.all_metrics_against
+    monkeypatch.setattr(M, "all_metrics_against", lambda *a, **k: calls.append(1) or real(*a, **k))
+
+    def study(cache):
+        calls.clear()
+        logs.clear()
+        s = Study(get_profile("quick"), cache_root=tmp_path / cache, progress=False, log=logs.append)
+        res = s.run(scenes, configs, agreement=False)
+        figs = {(t.scene, t.test): (t.per_frame, t.uncertainty, t.temporal, t.temporal_u)
+                for t in res.statics + [g for gs in res.ghosts.values() for g in gs]}
+        return res, figs, s.drifts, len(calls), list(logs)
+    kept, figs, drifts, n, log = study("kept")
+    reused = sum(int(m.split("; ")[-1].split()[0]) for m in log if "taken from an earlier round's" in m)
+    get = J.FrameFigures.get
+    monkeypatch.setattr(J.FrameFigures, "get", lambda self, *a: None)   # every frame judged afresh
+    fresh, figs0, drifts0, n0, _ = study("fresh")
+    assert figs == figs0 and drifts == drifts0 and kept.precision == fresh.precision
+    assert reused > 0 and n == n0 - reused, (reused, n, n0)
+    # a frame's figures are keyed by both references: another display transform is judged afresh
+    monkeypatch.setattr(J.FrameFigures, "get", get)
+    ff = J.FrameFigures.__new__(J.FrameFigures)
+    ff.old, ff.reused = {"3 ref disp": {"": {"mse": 1.0}}}, 0
+    assert ff.get(3, "ref", "disp") == {"": {"mse": 1.0}} and ff.get(3, "ref", "other") is None
+    assert ff.get(4, "ref", "disp") is None and ff.reused == 1

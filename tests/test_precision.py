@@ -409,3 +409,49 @@ def test_the_ghosting_protocols_share_an_instant_s_reference_at_the_finest_level
     assert s.level_of("a", "static", 3) == 0 and s.level_of("b", "ghosting_warm", 3) == 3
     assert s.settings_for("a", "ghosting", 3) == s.settings_for("a", "ghosting_warm", 3)
     assert s.bound_of("a", "ghosting", 3) == 8.0 / 2 ** 4
+
+
+@pytest.mark.long(seconds=20)
+def test_a_settled_test_s_agreement_runs_while_other_tests_still_refine(tmp_path, monkeypatch):
+    """The agreement (and the video metric) is judged against a test's final references: planned in
+    the round after the test settles rather than in a last round of its own, so it fills the rounds
+    the other tests still refine in. A ghosting test is settled only once no ghosting protocol of
+    its scene is refined (they share the instants' references). The same figures as waiting for the
+    last round."""
+    from study_fixtures import write_scenes
+    from study.config.profile import get_profile
+    from study.config.techniques import TechniqueConfig
+    from study.engine.runner import Study
+    scenes = write_scenes(tmp_path)
+    configs = [TechniqueConfig.parse(s) for s in ("taa_baseline", "noaa")]
+    finals, real_plan = [], Study.plan
+
+    def study(cache, wait=False):
+        finals.clear()
+
+        def plan(self, *a, **k):
+            if wait and isinstance(k.get("final"), frozenset):
+                k["final"] = frozenset()           # the former rule: nothing before the last round
+            finals.append(k.get("final"))
+            out = real_plan(self, *a, **k)
+            finals[-1] = (finals[-1], sorted(t.kind for t in out[0].tasks.values()))
+            return out
+        monkeypatch.setattr(Study, "plan", plan)
+        s = Study(get_profile("quick"), cache_root=tmp_path / cache, progress=False)
+        res = s.run(scenes, configs, agreement=True)
+        return res, list(finals)
+    res, rounds = study("early")
+    # tiny_moving's warm ghosting test refines one instant in the third round; both static tests settled
+    refining = [(f, kinds) for f, kinds in rounds if isinstance(f, frozenset) and "metrics" in kinds and f]
+    assert refining, rounds
+    f, kinds = refining[-1]
+    assert {("tiny_moving", "static"), ("tiny_still", "static")} <= f and kinds.count("agreement") == 2
+    assert not {("tiny_moving", "ghosting"), ("tiny_moving", "ghosting_warm")} & f      # its cold twin waits too
+    assert rounds[-1][0] is True and "agreement" not in rounds[-1][1]     # the last round finds them done
+    late, late_rounds = study("late", wait=True)
+    def figures(agreements):          # its timings and their seal differ run to run by nature
+        return {n: {k: v for k, v in a.items() if not k.endswith("_seconds") and k != "sha256"}
+                for n, a in agreements.items()}
+    assert "agreement" in late_rounds[-1][1] and figures(late.agreements) == figures(res.agreements)
+    assert sorted(late.agreements) == ["tiny_moving", "tiny_still"]
+    assert late.precision == res.precision

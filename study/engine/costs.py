@@ -131,3 +131,48 @@ def measure(scene, width: int, height: int, configs: list, displays: dict, extra
             if own:
                 sources.close()
     return out
+
+
+def measure_study(cache_root, scenes, statics, records_of, display_of, progress: bool = True) -> dict:
+    """(scene, column label) -> cost record of every static test's column: cached by scene, size,
+    technique (code included), this machine and the extra samples its run shaded; the missing
+    ones measured one after another. `records_of(test)`: label -> its run's done record;
+    `display_of(scene, t, w, h)`: frame t's display transform."""
+    import sys
+
+    from provenance import code_snapshot, task_key
+    from study.engine.store import Store
+    from study.engine.tasks import _deterministic
+    store, mach, out, todo = Store(cache_root), machine(), {}, []
+    by_name = {scene.name: scene for _, scene in scenes}
+    with code_snapshot():           # one state of the code for every cost's key
+        for test in statics:
+            scene, recs = by_name[test.scene], records_of(test)
+            for c in test.configs:
+                stats = (recs[c.label] or {}).get("stats") or {}
+                extra = sum(v["samples_shaded"] for v in stats.values()) / len(stats) / (test.width * test.height) \
+                    if stats else 0.0
+                key = task_key("cost", {"scene": scene.content_hash, "res": (test.width, test.height),
+                                        "technique": c.key_data(), "machine": mach, "extra_spp": round(extra, 3)},
+                               code=[c.code(), "study.engine.costs"])
+                path = store.record_path("costs", test.scene, key)
+                rec = store.load_record(path, key)
+                if rec is None:
+                    todo.append((test, scene, c, extra, key, path))
+                else:
+                    out[(test.scene, c.label)] = rec
+    if todo:
+        from tqdm import tqdm
+        refs, sources = {}, Sources()
+        try:
+            for test, scene, c, extra, key, path in tqdm(todo, desc="costs (serial)", unit="technique",
+                                                          disable=not progress, file=sys.stderr):
+                if test.scene not in refs:
+                    sources.close()          # todo is in scene order: one scene's rasterisers at a time
+                    refs[test.scene] = display_of(scene, 0, test.width, test.height)
+                got = _deterministic(measure)(scene, test.width, test.height, [c], {0: refs[test.scene]},
+                                              {c.label: extra}, sources)[c.label]
+                out[(test.scene, c.label)] = store.save_record(path, key, got)
+        finally:
+            sources.close()
+    return out

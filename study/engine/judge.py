@@ -11,13 +11,19 @@ added to a study is judged alone, and a key another task already judges is left 
 
 Every figure is judged against the reference and against its two independent halves, and filed
 with the reference's noise removed and the uncertainty that leaves (study.metrics.uncertainty).
+
+A technique frame's figures against one reference (and display transform) are also kept by run
+(`FrameFigures`): under the figures' rule a test is judged again each round some of its instants'
+references are refined, and the frames whose reference did not change (at 320x180, 22 of
+hairball_rotating_lit's 24 in its last round) take their figures from there instead of judging
+again; only the temporal measure, which needs every frame in order, reads them all.
 """
 from __future__ import annotations
 
 import contextlib
 from pathlib import Path
 
-from study.engine.tasks import TaskError, _deterministic, _setup, display_of, load_scene
+from study.engine.tasks import TaskError, _deterministic, _setup, display_reference, load_scene
 from study.metrics import suite as M
 from study.metrics import uncertainty as U
 
@@ -48,8 +54,8 @@ def metrics_task(ctx, scene_spec: str, w: int, h: int, items: list, ref_settings
     with contextlib.ExitStack() as locks:
         records, todo = locked_records(store, items, locks)
         if todo:
-            for it, data in _judge(store, ctx, scene, w, h, todo, ref_settings, display_settings):
-                records[it["key"]] = {"data": data, "computed": True}
+            for it, data, reused in _judge(store, ctx, scene, w, h, todo, ref_settings, display_settings):
+                records[it["key"]] = {"data": data, "computed": True, "frames_reused": reused}
     return {"kind": "metrics", "records": records}
 
 
@@ -91,11 +97,13 @@ def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict, display_set
     cache = ReferenceCache(Path(ctx.cache_root))
     state = [{"per_frame": {}, "uncertainty": {}, "maps": {}, "references": {},
               "temporal": {h: M.TemporalInstability() for h in HALVES}} for _ in items]
+    known = [FrameFigures(store, scene.name, it["run_key"]) for it in items]
     for t in sorted(by_time):
         ref = cache.get(scene, t, w, h, **ref_settings[t])[0]
         # one transform for all three; at a test's probe the reference is the probe: not read twice
-        disp = (DisplayTransform.from_reference(ref.image) if display_settings == ref_settings[t]
-                else display_of(cache, scene, t, w, h, display_settings))
+        # (else display_of's, its reference's key kept for FrameFigures)
+        dref = ref if display_settings == ref_settings[t] else display_reference(cache, scene, t, w, h, display_settings)
+        disp = DisplayTransform.from_reference(dref.image)
         refs = {hv: (*r, {}) for hv, r in judged_references(ref, disp).items()}   # {}: SSIM's and FLIP's memo
         for i, f in sorted(by_time[t]):
             it, run, st = items[i], runs[i], state[i]
@@ -107,15 +115,18 @@ def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict, display_set
             x = np.stack([ch[c] for c in "RGB"], -1)
             x_lin, x_disp, x8 = disp.output(x, run["output_space"])
             keep = [hv == "" and f in it["maps_for"] for hv in refs]
-            judged = M.all_metrics_against(list(refs.values()), x_lin, x_disp, x8, want_maps=keep)
-            figs = {}
-            for (hv, (_, _, r8, _)), (figs[hv], maps), k in zip(refs.items(), judged, keep):
-                if k:
-                    st["maps"][f"maps_{f:04d}.exr"] = maps
+            figs = None if any(keep) else known[i].get(f, ref.key, dref.key)
+            if figs is None:
+                judged = M.all_metrics_against(list(refs.values()), x_lin, x_disp, x8, want_maps=keep)
+                figs = {hv: got for hv, (got, _) in zip(refs, judged)}
+                st["maps"].update({f"maps_{f:04d}.exr": maps for (_, maps), k in zip(judged, keep) if k})
+                known[i].put(f, ref.key, dref.key, figs)
+            for hv, (_, _, r8, _) in refs.items():
                 st["temporal"][hv].add(r8, x8)
             st["per_frame"][str(f)], st["uncertainty"][str(f)] = U.jackknife(figs[""], figs["a"], figs["b"])
             st["references"][str(t)] = ref.key
-    for it, st in zip(items, state):
+    for it, st, kn in zip(items, state, known):
+        kn.save()
         tm = {hv: (acc.value() if acc.frames > 1 else None) for hv, acc in st["temporal"].items()}
         temporal = temporal_u = None
         if tm[""] is not None:
@@ -126,4 +137,36 @@ def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict, display_set
         rec = store.save_folder(Path(it["folder"]), it["key"], st["maps"], {"data": data})
         if it.get("keep") is not None:   # judged: only the frames the report shows stay (study.engine.plan)
             store.prune(Path(it["run_folder"]), it["run_key"], {f"frame_{f:04d}.exr" for f in it["keep"]})
-        yield it, rec["data"]
+        yield it, rec["data"], kn.reused
+
+
+class FrameFigures:
+    """The figures of a run's frames against each reference (and display transform) they were
+    judged against, the reference's and its halves': `get` what an earlier metrics task of the
+    same run judged, `put` what this one did, `save` merges them into the run's record under its
+    lock (two tasks may judge one run). Keyed by the run and the metric code: a frame's figures
+    depend on nothing else but the two reference keys."""
+
+    def __init__(self, store, scene: str, run_key: str):
+        from provenance import task_key
+        from study.engine.plan import CODE
+        self.store, self.key = store, task_key("frame-figures", {}, [run_key], code=CODE["metrics"])
+        self.path = store.record_path("frame-figures", scene, self.key)
+        self.old = (store.load_record(self.path, self.key) or {}).get("figures", {})
+        self.new: dict = {}
+        self.reused = 0
+
+    def get(self, frame: int, ref_key: str, disp_key: str) -> dict | None:
+        got = self.old.get(f"{frame} {ref_key} {disp_key}")
+        self.reused += got is not None
+        return got
+
+    def put(self, frame: int, ref_key: str, disp_key: str, figs: dict) -> None:
+        self.new[f"{frame} {ref_key} {disp_key}"] = figs
+
+    def save(self) -> None:
+        if not self.new:
+            return
+        with self.store.lock(self.key):
+            now = (self.store.load_record(self.path, self.key) or {}).get("figures", {})
+            self.store.save_record(self.path, self.key, {"figures": {**now, **self.new}})

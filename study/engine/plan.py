@@ -123,13 +123,14 @@ def _normalized_steps(scene, protocol: Protocol, schedule: list, inp, seen: tupl
 class Planner:
     def __init__(self, ctx: T.Context, ref_settings: dict, agreement_samples: int | None,
                  ref_settings_of: dict | None = None, display_settings: dict | None = None, video=None,
-                 video_final: bool = False, prune: bool = True):
+                 video_final: bool | frozenset = False, prune: bool = True):
         """`ref_settings_of`: (scene name, protocol name) -> the references' settings of that test
         where they differ from `ref_settings` (the precision its figures need; study.engine.precision).
         `display_settings`: the references every frame's display transform comes from
         (study.engine.tasks.display_of), `ref_settings` if not given. `video`: the video metric's
         settings (study.config.video.Video); its tasks are planned only with `video_final` (a
-        study's last round), but in every round the runs it will read keep every judged frame.
+        study's last round; or the tests, (scene, protocol), settled already), but in every round
+        the runs it will read keep every judged frame.
         `prune`: a metrics task prunes its runs to their kept frames once judged; without, the runs
         stay whole for a later round's references (the runner prunes a test's runs once it settles:
         prune_runs)."""
@@ -273,7 +274,9 @@ class Planner:
                 self.plan.tasks[gkey] = Task(gkey, "metrics", J.metrics_task,
                                              (self.ctx, spec, w, h, items, {t: at[t] for t in ts}, self.display_settings), deps)
                 self._metrics_task_of.update({it["key"]: gkey for it in items})
-        if self.video_final and vlabels:
+        final = (scene.name, protocol.name) in self.video_final if isinstance(self.video_final, frozenset) \
+            else self.video_final
+        if final and vlabels:
             made = {c.label: self._run_task_of.get(test.run_keys[c.label]) for c in configs}
             self._add_video(spec, scene, test, [c for c in configs if c.label in vlabels], at, made,
                             ref_keys, disp_keys)

@@ -14,7 +14,7 @@ from collections import Counter
 import sys
 from pathlib import Path
 
-from provenance import code_snapshot, task_key
+from provenance import code_snapshot
 from references import ReferenceCache
 from references.settings import SE_BOUND_LSB
 from scenes import ResolvedScene
@@ -28,7 +28,7 @@ from study.config.precision import Precision
 from study.engine import precision as P
 from study.engine.precision import decide, figures_of
 from study.engine.results import Artefacts, StudyResults, TestResult, view
-from study.engine.tasks import Context, _deterministic, display_of, load_scene
+from study.engine.tasks import Context, display_of, load_scene
 
 
 def is_animated(scene: ResolvedScene) -> bool:
@@ -100,17 +100,20 @@ class Study:
 
     # -- the whole study ----------------------------------------------------------------------------
     def plan(self, specs: list[str], configs: list[TechniqueConfig], agreement: bool = True,
-             sweep: tuple = (), ghosting: bool = True, final: bool = True, sharpen: tuple = (), prune: bool = True):
+             sweep: tuple = (), ghosting: bool = True, final: bool | frozenset = True, sharpen: tuple = (),
+             prune: bool = True):
         """The study's tests and the tasks it must compute: (plan, scenes, statics, ghosts, sweeps,
         sharpen sweeps). `sharpen`: the sharpen sweep's configs (study.config.profile.sharpen_sweep_configs),
         judged at the thesis's history on the profile's sharpen_sweep_scenes.
-        `final`: the study's last round, whose references are final: the video metric's tasks too."""
+        `final`: the study's last round, whose references are final: the video metric's and the
+        agreement's tasks too; or the tests ((scene, protocol)) already settled, theirs alone."""
         scenes = [(spec, load_scene(spec)) for spec in specs]
         protos = [self.profile.static, *self.profile.ghosting]
         ref_of = {(scene.name, p.name): self.settings_for(scene.name, p.name) for _, scene in scenes for p in protos}
         ref_of.update({k: self.settings_for(*k) for k in self.levels if len(k) == 3})
         planner = Planner(self.ctx, self.ref_settings, self.profile.agreement_samples if agreement else None, ref_of,
                           self.display_settings, video=self.profile.video, video_final=final, prune=prune)
+        is_final = (lambda k: k in final) if isinstance(final, frozenset) else (lambda k: bool(final))
         statics, ghosts, sweeps, sharpens = [], [], [], []
         # at the thesis's history alone; named as the static test, whose references it shares
         st = self.profile.static
@@ -136,7 +139,8 @@ class Study:
             if sharpen and scene.name in self.profile.sharpen_sweep_scenes:
                 sharpens.append(planner.add_test(spec, scene, sharpen_proto, list(sharpen), w, h, maps="none",
                                                  keep="none"))
-            planner.add_agreement(spec, scene, w, h, self.profile.static.name)
+            if is_final((scene.name, st.name)):
+                planner.add_agreement(spec, scene, w, h, st.name)
         self.planner = planner
         return planner.plan, scenes, statics, ghosts, sweeps, sharpens
 
@@ -150,20 +154,21 @@ class Study:
         rounds, tried, over, before = [], {}, {}, {}    # over: (scene, protocol) -> figures over at its bound
         self.drifts = {}              # (scene, protocol) -> (protocol, label, frame, metric) -> drift
         figures = self.precision.rule == "figures"
-        # the agreement (64-256 raster frames a scene) only against the static test's final references
-        agree, settled = agreement and not figures, False
+        # the agreement (64-256 raster frames a scene) and the video metric against the final references:
+        # a test's as soon as it is settled (`early`: its tasks fill the rounds other tests still refine in)
+        settled, early = not figures, frozenset()
         memo, probes = None, None     # the record of this study's decisions (figures rule)
         from study.engine.store import Store
         inputs = P.inputs_key(self, specs, configs, [agreement, sweep, ghosting, sharpen, seeded]) if figures else None
         if inputs and (memo := P.recall(Store(self.cache.root), inputs)):    # no probe plan needed
             self.levels, tried, over, self.drifts = P.from_record(memo["replayed"])
             self.log("precision: every test's bound as decided by an earlier study of the same inputs")
-            agree, settled = agreement, True
+            settled = True
         with Session(self.executor, self.log) as session:     # one cluster for every round
             while True:
                 with code_snapshot():
-                    plan, scenes, statics, ghosts, sweeps, sharpens = self.plan(specs, configs, agree, sweep, ghosting,
-                                                                      final=settled or not figures, sharpen=sharpen,
+                    plan, scenes, statics, ghosts, sweeps, sharpens = self.plan(specs, configs, agreement, sweep, ghosting,
+                                                                      final=settled or early, sharpen=sharpen,
                                                                       prune=not figures)
                 if figures and memo is None:      # the probe's plan: did a study decide from it before?
                     memo = P.decisions(Store(self.cache.root), self.precision, plan, agreement)
@@ -176,7 +181,7 @@ class Study:
                     if memo["replayed"]:
                         self.levels, tried, over, self.drifts = P.from_record(memo["replayed"])
                         self.log("precision: every test's bound as decided by an earlier study of the same tasks")
-                        agree, settled = agreement, True        # the final round alone: plan it
+                        settled = True        # the final round alone: plan it
                         continue
                 instants: dict = {}       # test -> (label, frame) -> the scene time judging it
                 for t in statics + ghosts + sweeps:
@@ -192,16 +197,16 @@ class Study:
                              f", {len(plan.cached)} complete; executor: {self.executor.describe()}")
                 t0, spent = time.perf_counter(), Counter(session.task_seconds)
                 results = session.execute(plan, self.progress)
-                if plan.tasks:
-                    spent = session.task_seconds - spent
-                    self.log(f"study: round {len(rounds) + 1} took {time.perf_counter() - t0:.1f} s wall; task seconds "
-                             + ", ".join(f"{k} {v:.1f}" for k, v in sorted(spent.items())))
                 for key in [k for k, v in results.items() if "records" in v]:   # a metrics or video task: by key
                     task = results.pop(key)
-                    for mkey, rec in task["records"].items():
-                        results[mkey] = {"kind": task["kind"], "key": mkey, **rec}
+                    results.update({mkey: {"kind": task["kind"], "key": mkey, **rec} for mkey, rec in task["records"].items()})
+                if plan.tasks:
+                    spent, reused = session.task_seconds - spent, sum(v.get("frames_reused", 0) for v in results.values())
+                    self.log(f"study: round {len(rounds) + 1} took {time.perf_counter() - t0:.1f} s wall; task seconds "
+                             + ", ".join(f"{k} {v:.1f}" for k, v in sorted(spent.items()))
+                             + (f"; {reused} technique-frames' figures taken from an earlier round's" if reused else ""))
                 rounds.append((counts, results))
-                if not figures or settled:
+                if settled:
                     break
                 now: dict = {}
                 for t in statics + ghosts + sweeps:        # a sweep shares its protocol's references
@@ -236,8 +241,11 @@ class Study:
                 if not finer:
                     if not agreement and not self.profile.video.on:
                         break
-                    # one more round: the agreements and the video metric alone (the rest is cached)
-                    agree, settled = agreement, True
+                    settled = True    # one more round: what the last tests settled ask for (the rest is cached)
+                # settled: not refined, nor is a ghosting protocol of its scene (they share the instants' references)
+                ghost = {p.name for p in self.profile.ghosting}
+                moving = {(s, p) for s, q in finer for p in ({q} | (ghost if q in ghost else set()))}
+                early = frozenset(k for k in instants if k not in moving)
                 self.levels.update({k if t is None else (*k, t): n for k, step in finer.items() for t, n in step.items()})
         self.planner.prune_runs(lambda k: True)
         if probes is not None:
@@ -356,45 +364,7 @@ class Study:
     # -- costs: serial, after everything else ---------------------------------------------------------
     def _costs(self, scenes, statics, results) -> dict:
         from study.engine import costs as C
-        from study.engine.store import Store
-        store = Store(self.cache.root)
-        mach = C.machine()
-        out = {}
-        by_name = {scene.name: (spec, scene) for spec, scene in scenes}
-        todo = []
-        with code_snapshot():           # one state of the code for every cost's key
-            for test in statics:
-                spec, scene = by_name[test.scene]
-                recs = self._records(test)
-                for c in test.configs:
-                    extra = 0.0
-                    stats = (recs[c.label] or {}).get("stats") or {}
-                    if stats:
-                        extra = sum(v["samples_shaded"] for v in stats.values()) / len(stats) / (test.width * test.height)
-                    key = task_key("cost", {"scene": scene.content_hash, "res": (test.width, test.height),
-                                            "technique": c.key_data(), "machine": mach, "extra_spp": round(extra, 3)},
-                                   code=[c.code(), "study.engine.costs"])
-                    path = store.record_path("costs", test.scene, key)
-                    rec = store.load_record(path, key)
-                    if rec is None:
-                        todo.append((test, scene, c, extra, key, path))
-                    else:
-                        out[(test.scene, c.label)] = rec
-        if todo:
-            from tqdm import tqdm
-            refs, sources = {}, C.Sources()
-            try:
-                for test, scene, c, extra, key, path in tqdm(todo, desc="costs (serial)", unit="technique",
-                                                              disable=not self.progress, file=sys.stderr):
-                    if test.scene not in refs:
-                        sources.close()          # todo is in scene order: one scene's rasterisers at a time
-                        refs[test.scene] = self.display(scene, 0, test.width, test.height)
-                    got = _deterministic(C.measure)(scene, test.width, test.height, [c], {0: refs[test.scene]},
-                                                    {c.label: extra}, sources)[c.label]
-                    out[(test.scene, c.label)] = store.save_record(path, key, got)
-            finally:
-                sources.close()
-        return out
+        return C.measure_study(self.cache.root, scenes, statics, self._records, self.display, self.progress)
 
 
 __all__ = ["Study", "StudyResults", "TestResult", "is_animated"]

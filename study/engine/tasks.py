@@ -66,7 +66,12 @@ def display_of(cache, scene, t: int, w: int, h: int, display_settings: dict):
     transform at every precision and under either rule; a probe is ~6 % of a 0.5-LSB reference's
     samples."""
     from display import DisplayTransform
-    return DisplayTransform.from_reference(cache.get(scene, t, w, h, **display_settings)[0].image)
+    return DisplayTransform.from_reference(display_reference(cache, scene, t, w, h, display_settings).image)
+
+
+def display_reference(cache, scene, t: int, w: int, h: int, display_settings: dict):
+    """The reference frame t's display transform comes from (display_of)."""
+    return cache.get(scene, t, w, h, **display_settings)[0]
 
 
 @lru_cache(maxsize=64)
