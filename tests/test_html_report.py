@@ -190,6 +190,33 @@ def test_collect_reads_a_finished_study(tiny_study):
     assert [p for r, c, p in st["links"] if (r, c) == (ssim_row, 2)] == ["maps/static_tiny_still_taa_baseline_ssim.png"]
 
 
+
+@pytest.mark.long(seconds=17)
+def test_each_technique_s_maps_and_image_are_its_own(tiny_study):
+    """The report makes its images on a thread pool, after the loop that plans them: every map file
+    holds the maps its own technique's metrics filed (not the loop's last technique's), and the
+    SSIM PNG is that map at 8 bits."""
+    import json
+    from PIL import Image
+    from references.exr import read_exr
+    out, _ = tiny_study
+    arts = json.loads((out / "manifest.json").read_text())["artefacts"]
+    cache = out.parent / "cache"
+    checked = set()
+    for rel, entry in arts.items():
+        if not (rel.startswith("maps/static_") and rel.endswith(".exr")):
+            continue
+        inputs = entry["inputs"]
+        (own,) = list(cache.glob(f"metrics/*/{inputs['metrics']}/maps_{inputs['frame']:04d}.exr"))
+        _, want = read_exr(own)
+        _, got = read_exr(out / rel)
+        assert sorted(got) == sorted(want) and all(np.array_equal(got[k], want[k]) for k in want), rel
+        ssim = np.asarray(Image.open(out / rel.replace(".exr", "_ssim.png")))
+        assert np.array_equal(ssim, np.round(np.clip(want["ssim"], 0, 1) * 255).astype(np.uint8)), rel
+        checked.add(rel.split("_")[-1])
+    assert checked >= {"noaa.exr", "baseline.exr"}, checked       # both columns' maps differ
+
+
 # -- in a browser -------------------------------------------------------------------------------------
 def _browser_missing() -> str | None:
     for exe in ("chromium", "chromedriver"):

@@ -305,16 +305,16 @@ class Planner:
                 continue
             items.append({"label": c.label, "run_folder": test.run_folders[c.label], "run_key": test.run_keys[c.label],
                           "frame_times": ft, "frames": frames, "key": vkey, "folder": str(folder), "ts": ts})
-        if not items:
-            return
-        deps = tuple(sorted({made[it["label"]] for it in items} - {None})) + tuple(dict.fromkeys(
-            self._reference(spec, scene, t, test.width, test.height, s)
-            for it in items for t in it["ts"] for s in (at[t], self.display_settings)))
-        gkey = task_key("video-of", sorted(it["key"] for it in items))
-        self.plan.tasks[gkey] = Task(gkey, "video", V.video_task, (
-            self.ctx, spec, test.width, test.height, items, {t: at[t] for it in items for t in it["ts"]},
-            self.display_settings, video.key_data(),
-            test.protocol.kind), deps)
+        # a task per column: at ~7 s each (320x180) they fill a round's workers evenly, where one
+        # task per test (~50 s) ended a round on one worker while the other waited
+        for it in items:
+            deps = tuple({made[it["label"]]} - {None}) + tuple(dict.fromkeys(
+                self._reference(spec, scene, t, test.width, test.height, s)
+                for t in it["ts"] for s in (at[t], self.display_settings)))
+            gkey = task_key("video-of", [it["key"]])
+            self.plan.tasks[gkey] = Task(gkey, "video", V.video_task, (
+                self.ctx, spec, test.width, test.height, [it], {t: at[t] for t in it["ts"]},
+                self.display_settings, video.key_data(), test.protocol.kind), deps)
 
     def prune_runs(self, settled) -> int:
         """Prune the runs of the plan's tests for which `settled((scene, protocol))` holds to the frames

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from study.reporting.tables import Table
+from study.reporting.tables import UNCERTAINTY_NOTE, Table
 
 # The digits of each claim's unit: dB to 0.01, MSE to 0.1, a ratio to 0.01.
 _DIGITS = {"dB": 2, "MSE": 1, "ratio": 2}
@@ -158,3 +158,29 @@ def agreement_line(agree: dict | None) -> str:
             + (" (removed with its halves; its share of the figure is the ±)" if agree.get("reference_rule") == "figures"
                else "") + ". "
             + ("Targets missed: " + "; ".join(missed) + "." if missed else "Every target met."))
+
+
+def floor_note(agree: dict | None) -> str:
+    """A table's note on its scene's raster/reference agreement."""
+    if not agree:
+        return ""
+    missed = agreement_missed(agree)
+    u = agree.get("agreement_u_db") or 0.0
+    removed = " (removed with its halves)" if agree.get("reference_rule") == "figures" else ""
+    return (f"Reference agreement (raster mean of {agree['raster_samples']} jittered frames vs reference): "
+            f"{agree['agreement_psnr_db']:.1f}" + (f" ± {u:.1g}" if u >= 0.05 else "") + " dB; reference noise "
+            f"{agree['reference_noise_psnr_db']:.1f} dB at {agree['reference_spp']} spp{removed}"
+            + (f" – below its target ({'; '.join(missed)}): every figure of this scene carries that error." if missed
+               else ""))
+
+
+def precision_note(res) -> str:
+    """A table's note on the bounds its references were refined to."""
+    bounds = sorted(set(res.reference_bounds_lsb.values()) or {res.reference_bound_lsb}, reverse=True)
+    if len(bounds) > 1:
+        n = {b: sum(1 for v in res.reference_bounds_lsb.values() if v == b) for b in bounds}
+        refined = (f"{bounds[0]:g} LSB per pixel, " + ", ".join(f"{n[b]} of its {len(res.reference_bounds_lsb)} "
+                   f"instants to {b:g}" for b in bounds[1:]))
+    else:
+        refined = f"{bounds[0]:g} LSB per pixel"
+    return f" References refined to {refined} (study.engine.precision). " + UNCERTAINTY_NOTE

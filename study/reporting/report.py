@@ -15,6 +15,7 @@ from provenance.files import write_bytes_atomic, write_text_atomic
 from study.engine.results import shown_frames
 from study.reporting import plots
 from study.reporting.encode import display_8bit, exr_bytes, magma, png, slug
+from study.reporting.findings_text import floor_note, precision_note
 from study.reporting.summaries import Summaries
 from study.reporting.sharpen_sweep import SharpenSweep
 from study.reporting.upscaling import Upscaling
@@ -53,6 +54,7 @@ class Report(Summaries, Upscaling, SharpenSweep):
         self.improved = self.roles.get("Improved")
         self.manifest: dict[str, dict] = {}
         self.markdown: list[str] = []
+        self._pool, self._pending = None, []     # the images being made (_file's parallel)
         try:
             self.previous = json.loads((self.out / "manifest.json").read_text()).get("artefacts", {})
         except (OSError, ValueError):
@@ -75,12 +77,22 @@ class Report(Summaries, Upscaling, SharpenSweep):
         from provenance.files import sha256_file
         return sha256_file(path) == prev.get("sha256")
 
-    def _file(self, rel: str, data, inputs: dict) -> None:
-        """Write `data` (str, bytes, or a function making them) unless inputs and file are unchanged."""
+    def _file(self, rel: str, data, inputs: dict, parallel: bool = False) -> None:
+        """Write `data` (str, bytes, or a function making them) unless inputs and file are unchanged.
+        `parallel`: made on a thread of the pool (an image: a frame read, display-encoded and PNG-
+        encoded, mostly outside the GIL; 2900 of them were 33 s of a cold report on one core),
+        written by `finish` at the latest. Never a plot (matplotlib is not thread-safe)."""
         path = self.out / rel
         if callable(data):
             if self._unchanged(rel, inputs):
                 self.manifest[rel] = self.previous[rel]
+                return
+            if parallel:
+                if self._pool is None:
+                    from concurrent.futures import ThreadPoolExecutor
+                    import os
+                    self._pool = ThreadPoolExecutor(max(1, len(os.sched_getaffinity(0))))
+                self._pending.append(self._pool.submit(lambda: self._file(rel, data(), inputs)))
                 return
             data = data()
         (write_text_atomic if isinstance(data, str) else write_bytes_atomic)(path, data)
@@ -94,31 +106,6 @@ class Report(Summaries, Upscaling, SharpenSweep):
         self._file(f"tables/{stem}.tex", table.latex(), inputs)
         self.markdown.append(table.markdown())
 
-    @staticmethod
-    def _floor_note(agree: dict | None) -> str:
-        if not agree:
-            return ""
-        from study.reporting.findings_text import agreement_missed
-        missed = agreement_missed(agree)
-        u = agree.get("agreement_u_db") or 0.0
-        removed = " (removed with its halves)" if agree.get("reference_rule") == "figures" else ""
-        return (f"Reference agreement (raster mean of {agree['raster_samples']} jittered frames vs reference): "
-                f"{agree['agreement_psnr_db']:.1f}" + (f" ± {u:.1g}" if u >= 0.05 else "") + " dB; reference noise "
-                f"{agree['reference_noise_psnr_db']:.1f} dB at {agree['reference_spp']} spp{removed}"
-                + (f" – below its target ({'; '.join(missed)}): every figure of this scene carries that error." if missed
-                   else ""))
-
-    @staticmethod
-    def _precision_note(res) -> str:
-        bounds = sorted(set(res.reference_bounds_lsb.values()) or {res.reference_bound_lsb}, reverse=True)
-        if len(bounds) > 1:
-            n = {b: sum(1 for v in res.reference_bounds_lsb.values() if v == b) for b in bounds}
-            refined = (f"{bounds[0]:g} LSB per pixel, " + ", ".join(f"{n[b]} of its {len(res.reference_bounds_lsb)} "
-                       f"instants to {b:g}" for b in bounds[1:]))
-        else:
-            refined = f"{bounds[0]:g} LSB per pixel"
-        return f" References refined to {refined} (study.engine.precision). " + UNCERTAINTY_NOTE
-
     # -- static ------------------------------------------------------------------------------
     def static(self, res, agree: dict | None, ref, stem: str) -> None:
         """One static protocol's table, display images and maps (res: a view of the static run)."""
@@ -129,7 +116,7 @@ class Report(Summaries, Upscaling, SharpenSweep):
                   "video": {l: a.get("video_key") for l, a in res.artefacts.items()},
                   "costs": {l: c.get("key") for l, c in res.costs.items()}}
         note = (f"{res.test}: {res.width}x{res.height}, 8-bit display images; ms / frame = raster of the samples "
-                f"shaded + resolve (study.engine.costs). " + self._floor_note(agree) + self._precision_note(res))
+                f"shaded + resolve (study.engine.costs). " + floor_note(agree) + precision_note(res))
         us = {l: res.uncertainty.get(l, {}).get(n, {}) for l in res.per_frame}
         jod = ["jod"] if any("jod" in v for v in results.values()) else []     # where the study judges it
         table = thesis_layout(f"Static test, {res.test}: {res.scene}", results, STATIC_METRICS + jod,
@@ -142,7 +129,7 @@ class Report(Summaries, Upscaling, SharpenSweep):
                 shown.append(self.display(res.scene, 0, res.width, res.height, ref))
             return shown[0]
         self._file(f"images/{stem}_{res.scene}_reference.png", lambda: png(disp().to_8bit(ref.image)),
-                   {"reference": ref.key})
+                   {"reference": ref.key}, parallel=True)
         for label, a in res.artefacts.items():
             f = a["frame"]
             key = {"run": a["run_key"], "metrics": a["metrics_key"], "frame": f}
@@ -151,19 +138,20 @@ class Report(Summaries, Upscaling, SharpenSweep):
             def image(a=a, f=f):
                 img = self.artefacts.frame(a, f)
                 return png(display_8bit(img, a["output_space"], disp()))
-            self._file(f"images/{base}.png", image, key)
+            self._file(f"images/{base}.png", image, key, parallel=True)
             if f not in a["maps_for"]:
                 continue
             maps = {}
 
-            def get_maps(a=a, f=f):
+            def get_maps(a=a, f=f, maps=maps):
                 if not maps:
                     maps.update(self.artefacts.maps(a, f))
                 return maps
-            self._file(f"maps/{base}_ssim.png",
-                       lambda: png(np.round(np.clip(get_maps()["ssim"], 0, 1) * 255).astype(np.uint8)), key)
-            self._file(f"maps/{base}_flip.png", lambda: png(magma(get_maps()["flip_ldr"])), key)
-            self._file(f"maps/{base}.exr", lambda: exr_bytes(get_maps()), key)
+            # made later, on the pool: each bound to this technique's maps, not the loop's last
+            self._file(f"maps/{base}_ssim.png", lambda g=get_maps: png(np.round(np.clip(g()["ssim"], 0, 1) * 255)
+                                                                      .astype(np.uint8)), key, parallel=True)
+            self._file(f"maps/{base}_flip.png", lambda g=get_maps: png(magma(g()["flip_ldr"])), key, parallel=True)
+            self._file(f"maps/{base}.exr", lambda g=get_maps: exr_bytes(g()), key, parallel=True)
 
     # -- ghosting ----------------------------------------------------------------------------
     def ghosting(self, res, agree: dict | None, stem: str = "ghosting") -> None:
@@ -204,7 +192,7 @@ class Report(Summaries, Upscaling, SharpenSweep):
                    f"fps on its '{res.video['display']}' display model (10 = no visible difference; higher is better).")
         rows.append([METRIC_LABELS["ms"], "median"] + [fmt("ms", res.ms[l]) for l in labels] + ["–"])
         note = (f"{res.test}: {len(res.frames)} frames at {res.width}x{res.height}, each against its own reference. "
-                + self._floor_note(agree) + self._precision_note(res) + jod)
+                + floor_note(agree) + precision_note(res) + jod)
         inputs = {"runs": {l: a["run_key"] for l, a in res.artefacts.items()},
                   "video": {l: a.get("video_key") for l, a in res.artefacts.items()},
                   "references": list(res.reference_keys.values())}
@@ -239,7 +227,7 @@ class Report(Summaries, Upscaling, SharpenSweep):
         for t in frames:
             rel = f"images/{stem}_reference_{t:04d}.png"
             key = {"reference": res.reference_keys.get(t)}
-            self._file(rel, lambda t=t: png(ref_of(t)[1].to_8bit(ref_of(t)[0].image)), key)
+            self._file(rel, lambda t=t: png(ref_of(t)[1].to_8bit(ref_of(t)[0].image)), key, parallel=True)
             entry["reference"].append(rel)
         for label, a in res.artefacts.items():
             imgs = []
@@ -249,7 +237,8 @@ class Report(Summaries, Upscaling, SharpenSweep):
                 def image(a=a, t=t):
                     img = self.artefacts.frame(a, t)
                     return png(display_8bit(img, a["output_space"], ref_of(t)[1]))
-                self._file(rel, image, {"run": a["run_key"], "frame": t, "reference": res.reference_keys.get(t)})
+                self._file(rel, image, {"run": a["run_key"], "frame": t, "reference": res.reference_keys.get(t)},
+                           parallel=True)
                 imgs.append(rel)
             entry["techniques"][label] = {
                 "images": imgs,
@@ -314,6 +303,11 @@ class Report(Summaries, Upscaling, SharpenSweep):
     def finish(self, summary: dict) -> None:
         """study.md, then the files of the previous manifest this study did not write again are
         removed (an older run's; a file no manifest listed is the user's and stays), then the manifest."""
+        for fut in self._pending:
+            fut.result()            # an image that failed fails the report here
+        self._pending = []
+        if self._pool is not None:
+            self._pool.shutdown()
         self._file("study.md", "# TAA study\n\n" + "\n".join(self.markdown), {"tables": sorted(self.manifest)})
         removed = 0
         for rel in sorted(set(self.previous) - set(self.manifest)):
