@@ -148,6 +148,11 @@ class Planner:
         self._feeds_of: dict = {}        # run key -> [(metrics folder, key)] the planned run is judged into
         self._metrics_task_of: dict = {}  # metrics key -> key of the metrics task that judges it
 
+    def is_final(self, test: tuple) -> bool:
+        """Whether a test's ((scene, protocol)) references are final (`video_final`): its video
+        metric's and agreement's tasks are planned."""
+        return test in self.video_final if isinstance(self.video_final, frozenset) else bool(self.video_final)
+
     def settings(self, scene, protocol: str, t: int | None = None) -> dict:
         """A test's references' settings; at instant t, that instant's own where it has one."""
         got = self.ref_settings_of.get((scene.name, protocol, t)) if t is not None else None
@@ -274,9 +279,7 @@ class Planner:
                 self.plan.tasks[gkey] = Task(gkey, "metrics", J.metrics_task,
                                              (self.ctx, spec, w, h, items, {t: at[t] for t in ts}, self.display_settings), deps)
                 self._metrics_task_of.update({it["key"]: gkey for it in items})
-        final = (scene.name, protocol.name) in self.video_final if isinstance(self.video_final, frozenset) \
-            else self.video_final
-        if final and vlabels:
+        if self.is_final((scene.name, protocol.name)) and vlabels:
             made = {c.label: self._run_task_of.get(test.run_keys[c.label]) for c in configs}
             self._add_video(spec, scene, test, [c for c in configs if c.label in vlabels], at, made,
                             ref_keys, disp_keys)

@@ -113,7 +113,6 @@ class Study:
         ref_of.update({k: self.settings_for(*k) for k in self.levels if len(k) == 3})
         planner = Planner(self.ctx, self.ref_settings, self.profile.agreement_samples if agreement else None, ref_of,
                           self.display_settings, video=self.profile.video, video_final=final, prune=prune)
-        is_final = (lambda k: k in final) if isinstance(final, frozenset) else (lambda k: bool(final))
         statics, ghosts, sweeps, sharpens = [], [], [], []
         # at the thesis's history alone; named as the static test, whose references it shares
         st = self.profile.static
@@ -139,7 +138,7 @@ class Study:
             if sharpen and scene.name in self.profile.sharpen_sweep_scenes:
                 sharpens.append(planner.add_test(spec, scene, sharpen_proto, list(sharpen), w, h, maps="none",
                                                  keep="none"))
-            if is_final((scene.name, st.name)):
+            if planner.is_final((scene.name, st.name)):
                 planner.add_agreement(spec, scene, w, h, st.name)
         self.planner = planner
         return planner.plan, scenes, statics, ghosts, sweeps, sharpens

@@ -305,9 +305,9 @@ class Report(Summaries, Upscaling, SharpenSweep):
         removed (an older run's; a file no manifest listed is the user's and stays), then the manifest."""
         for fut in self._pending:
             fut.result()            # an image that failed fails the report here
-        self._pending = []
         if self._pool is not None:
             self._pool.shutdown()
+        self._pool, self._pending = None, []      # a later parallel file starts a pool of its own
         self._file("study.md", "# TAA study\n\n" + "\n".join(self.markdown), {"tables": sorted(self.manifest)})
         removed = 0
         for rel in sorted(set(self.previous) - set(self.manifest)):
