@@ -182,6 +182,42 @@ def test_supersample_shades_only_masked_pixels_and_equals_the_mean_of_full_frame
     assert 0 < stats["objects_needed"] <= stats["objects_total"]
 
 
+def test_supersample_reuses_a_scene_time_s_samples_bit_for_bit_and_forgets_them_at_another_time():
+    """A static test asks one time's extra samples 256 times over overlapping masks: pixels shaded
+    before are not shaded again, and the image and counts are a fresh rasterizer's."""
+    import raster.frames as F
+    from scenes.jitter import halton_offsets
+    scene = _moving_scene(Motion(velocity=(0.07, -0.03, 0.05)), cam_velocity=(0.05, 0, 0))
+    offs = halton_offsets(4)
+    m0, m1 = np.zeros((H, W), bool), np.zeros((H, W), bool)
+    m0[2:9, 3:20] = True
+    m1[5:14, 10:28] = True                   # overlaps m0
+    every = np.ones((H, W), bool)
+    n = lambda m: 4 * int(m.sum())           # noqa: E731  samples of 4 offsets
+    calls = [(3, m0, n(m0)), (3, m1, n(m1 & ~m0)), (3, every, n(~(m0 | m1))),
+             (5, m0, n(m0)),                 # another time: all again
+             (3, m0, n(m0))]                 # and time 3's were forgotten
+    r, fresh = Rasterizer(scene, W, H), Rasterizer(scene, W, H)
+    shaded, real = [], F.shade
+
+    def counting(geo, surf, *a):
+        shaded.append(dr.width(surf.obj))
+        return real(geo, surf, *a)
+    try:
+        F.shade = counting
+        for t, m, want_shaded in calls:
+            shaded.clear()
+            got, stats = r.supersample(t, m, offs)
+            assert sum(shaded) == want_shaded, (t, sum(shaded), want_shaded)
+            want, want_stats = fresh.supersample(t, m, offs, reuse=False)
+            assert np.array_equal(got, want) and stats == want_stats
+            assert np.any(got[m] != 0)
+    finally:
+        F.shade = real
+        r.close()
+        fresh.close()
+
+
 def test_motion_refers_to_the_given_previous_time():
     """A static test renders many frames of one instant: with prev_t = t nothing moves."""
     scene = _moving_scene(Motion(velocity=(0.07, -0.03, 0.05)), cam_velocity=(0.05, 0, 0))

@@ -121,7 +121,7 @@ def measure(scene, width: int, height: int, configs: list, displays: dict, extra
                 mask = np.zeros((height, width), bool)
                 mask.ravel()[rng.choice(width * height, min(n_pix, width * height), replace=False)] = True
                 offs = halton_offsets(inp.extra_samples)
-                extra_ms = median_ms(lambda: src.raster.supersample(0, mask, offs), repeats=3, warmup=1)
+                extra_ms = median_ms(lambda: src.raster.supersample(0, mask, offs, reuse=False), repeats=3, warmup=1)
             spp = inp.shaded_samples(float(extra_spp.get(c.label, 0.0)) / inp.extra_samples
                                      if inp.extra_samples else 0.0)
             out[c.label] = {"raster_ms": raster_ms, "resolve_ms": resolve_ms, "extra_ms": extra_ms,
