@@ -395,6 +395,55 @@ def test_a_seeded_study_starts_each_test_at_the_bound_an_earlier_study_settled(t
     assert all(r[0] == 8.0 for r in unseeded.values())
 
 
+@pytest.mark.long(seconds=20)
+def test_a_seeded_study_plans_its_agreement_beside_the_new_column_s_runs(tmp_path, monkeypatch):
+    """`ab`'s loop: a test seeded at an earlier study's bound plans its agreement (and video) in the
+    first round, beside the new column's runs; where no test is refined that round is the last
+    (no round of its own for what the final references feed). The same figures as a study that
+    waits for a last round."""
+    from study_fixtures import write_scenes
+    from study.config.profile import get_profile
+    from study.config.techniques import TechniqueConfig
+    from study.engine import runner
+    from study.engine.runner import Study
+    scenes = write_scenes(tmp_path)[:1]
+    a, b = (TechniqueConfig.parse(s) for s in ("noaa", "B=taa_baseline:sharpen=none"))
+    rounds, real_plan = [], Study.plan
+
+    def plan(self, *a_, **k):
+        out = real_plan(self, *a_, **k)
+        rounds.append(sorted(t.kind for t in out[0].tasks.values()))
+        return out
+    monkeypatch.setattr(Study, "plan", plan)
+
+    def study(cache, cs, seeded):
+        rounds.clear()
+        res = Study(get_profile("quick"), cache_root=tmp_path / cache, progress=False).run(
+            scenes, cs, agreement=seeded is not None, seeded=bool(seeded))
+        return res, list(rounds)
+    for cache in ("early", "late"):
+        study(cache, [a], None)
+    res, planned = study("early", [a, b], True)
+    refined = any(len(r["rounds"]) > 1 for per in res.precision.values() for r in per.values())
+    assert not refined, res.precision        # noaa's bound holds B's figures here (else a finer round)
+    # the probe's plan, then the seeded one: runs, metrics and the agreement together, and no more
+    assert len(planned) == 2 and "agreement" in planned[1] and "run" in planned[1], planned
+    monkeypatch.setattr(runner, "_seeded_early", lambda *a_: frozenset())
+    late, late_planned = study("late", [a, b], True)
+    assert len(late_planned) == 3 and "agreement" in late_planned[2] and "agreement" not in late_planned[1]
+    strip = lambda ag: {n: {k: v for k, v in x.items() if not k.endswith("_seconds") and k != "sha256"}  # noqa: E731
+                        for n, x in ag.items()}
+    assert strip(late.agreements) == strip(res.agreements) and late.precision == res.precision
+
+
+def test_a_seeded_ghosting_test_is_planned_early_only_with_its_scene_s_other_ghosting_protocols():
+    from study.engine.runner import _seeded_early
+    tests = [("s", "static"), ("s", "ghosting"), ("s", "ghosting_warm"), ("t", "ghosting_warm"), ("u", "static")]
+    seeded = {("s", "static"), ("s", "ghosting_warm"), ("t", "ghosting_warm")}
+    assert _seeded_early(tests, seeded, {"ghosting", "ghosting_warm"}) == {("s", "static"), ("t", "ghosting_warm")}
+    assert _seeded_early(tests, seeded | {("s", "ghosting")}, {"ghosting", "ghosting_warm"}) == seeded | {("s", "ghosting")}
+
+
 def test_the_ghosting_protocols_share_an_instant_s_reference_at_the_finest_level_either_asks(tmp_path):
     """The cold and the warm ghosting tests judge the same instants: each instant is rendered once,
     at the finer of their levels; the static test's instants (its control columns ask for finer

@@ -176,6 +176,9 @@ class Study:
                     if seeds:
                         self.levels.update(seeds)
                         self.log(f"precision: {len({x[:2] for x in seeds})} of {len(probes)} tests start at the bound an earlier study settled")
+                        # their agreement and video are planned now, beside the new columns' runs: an
+                        # earlier study's bound usually holds (else they are made again at the finer one)
+                        early = _seeded_early(probes, {x[:2] for x in seeds}, {p.name for p in self.profile.ghosting})
                         continue
                     if memo["replayed"]:
                         self.levels, tried, over, self.drifts = P.from_record(memo["replayed"])
@@ -238,8 +241,8 @@ class Study:
                              f"{m} of {tech} ({label}, frame {f}) +-{u:.3g} > {tol:.3g}; "
                              + (nxt if k in finer else "the finest bound: reported"))
                 if not finer:
-                    if not agreement and not self.profile.video.on:
-                        break
+                    if (not agreement and not self.profile.video.on) or all(k in early for k in instants):
+                        break         # nothing asks for the final references, or this round planned it all
                     settled = True    # one more round: what the last tests settled ask for (the rest is cached)
                 # settled: not refined, nor is a ghosting protocol of its scene (they share the instants' references)
                 ghost = {p.name for p in self.profile.ghosting}
@@ -367,3 +370,10 @@ class Study:
 
 
 __all__ = ["Study", "StudyResults", "TestResult", "is_animated"]
+
+
+def _seeded_early(tests, seeded: set, ghost: set) -> frozenset:
+    """The tests whose agreement and video a seeded study plans in its first round: each started at
+    an earlier study's bound, with every ghosting protocol of its scene (they share references)."""
+    unseeded = {s for s, p in tests if p in ghost and (s, p) not in seeded}
+    return frozenset(k for k in tests if k in seeded and not (k[1] in ghost and k[0] in unseeded))
