@@ -72,6 +72,24 @@ def test_readme_ab_of_the_example_against_the_baseline(own):
     assert "widen must be in [0, 1], got 2" in r.output
 
 
+def test_a_technique_whose_own_code_fails_exits_2_naming_it_its_file_and_line(own):
+    """A bug in a researcher's technique file is their input: the study stops with its label, its
+    file and class, the frame and the line that failed, never a traceback; no run is sealed, and the
+    mended file's study goes through on the same cache."""
+    src = (own / "my_taa.py").read_text().replace("return n.min3 - pad, n.max3 + pad, n.avg3", "return n.nothing")
+    (own / "my_bad.py").write_text(src)
+    line = src.splitlines().index("        return n.nothing") + 1
+    r = _invoke(["ab", "taa_baseline", f"Bad={own / 'my_bad.py'}:Box3x3TAA", "--study", own / "my_study.toml",
+                 "--no-video"], code=2)
+    assert f"technique 'Bad' ({own / 'my_bad.py'}:Box3x3TAA) failed on scene 'tiny_" in r.output
+    assert "frame 1 (step 0)" in r.output
+    assert "AttributeError: 'Neighbourhood' object has no attribute 'nothing'" in r.output
+    assert f"my_bad.py:{line})" in r.output
+    assert not list((own / "cache" / "runs").rglob("done.json"))     # frames made before it: never sealed
+    (own / "my_bad.py").write_text((own / "my_taa.py").read_text())   # mended, the same study goes through
+    _invoke(["ab", "taa_baseline", f"Bad={own / 'my_bad.py'}:Box3x3TAA", "--study", own / "my_study.toml", "--no-video"])
+
+
 @pytest.mark.parametrize("text, message", [
     ('name = ""', "field name"),
     ('name = "x"\nresolution = [4, 4]', "field resolution"),

@@ -10,11 +10,29 @@ from tqdm import tqdm
 
 from display import DisplayTransform
 from raster import Rasterizer
+from raster.visibility import RasterError
 from scenes import ResolvedScene
 from scenes.jitter import halton_offsets
 from taa_impl.upscale import render_size
 
 from study.config.protocols import Step, frame_key, judged_steps, step_jitters
+
+
+class TechniqueError(ValueError):
+    """A technique's code failed on a frame (study.engine.tasks reports it as the task's error)."""
+
+
+def _failure(scene: str, label: str, tech, step: Step, exc: Exception) -> str:
+    import traceback
+    where = traceback.extract_tb(exc.__traceback__)
+    at = f" ({where[-1].filename}:{where[-1].lineno})" if where else ""
+    import inspect
+    try:
+        src = inspect.getfile(type(tech))         # a user's file: its path, not its loader's module name
+    except (TypeError, OSError):
+        src = type(tech).__module__
+    return (f"technique {label!r} ({src}:{type(tech).__name__}) failed on scene {scene!r}, frame {step.frame} "
+            f"(step {step.k}): {type(exc).__name__}: {exc}{at}")
 
 
 class FrameSource:
@@ -114,7 +132,12 @@ def run_schedule(scene: ResolvedScene, width: int, height: int, schedule: list[S
             for label, tech in techs.items():
                 if tech.inputs.sampling != "sequence" and step.frame not in judged[label]:
                     continue
-                img, stats = drive(tech, step, srcs[sizes[label]], scene, width, height, displays.get(step.t))
+                try:
+                    img, stats = drive(tech, step, srcs[sizes[label]], scene, width, height, displays.get(step.t))
+                except RasterError:
+                    raise
+                except Exception as exc:      # the technique's own code (a user's file): named, no traceback
+                    raise TechniqueError(_failure(scene.name, label, tech, step, exc)) from None
                 out[label]["nonfinite"] += int(getattr(tech, "last_nonfinite_count", 0))
                 if step.frame in judged[label] and step.keep:
                     if emit is None:
