@@ -162,11 +162,10 @@ class Rasterizer:
             if not reuse or self._ss_memo[0] != t:
                 self._ss_memo = (t if reuse else None, {})
             memo = self._ss_memo[1]
-            cam, geo = None, None
+            cam, geo = self.camera(t), self.geometry(t)      # both cheap; geometry is cached per time
             for jit in offsets:
                 key = (round(float(jit[0]), 9), round(float(jit[1]), 9))
                 if key not in memo:
-                    cam = self.camera(t) if cam is None else cam
                     obj_np, prim_np = self.vis.render(self.scene, t, cam.view(), cam.projection(jit))
                     memo[key] = (obj_np.ravel(), prim_np.ravel(), np.zeros((H * W, 3), np.float32),
                                  np.zeros(H * W, bool))
@@ -174,8 +173,6 @@ class Rasterizer:
                 needed.update(int(v) for v in np.unique(obj[sel]) if v > 0)
                 todo = sel[~done[sel]]
                 if len(todo):
-                    cam = self.camera(t) if cam is None else cam
-                    geo = self.geometry(t) if geo is None else geo
                     idx = array(mi.UInt32, todo, np.uint32)
                     _, surf, _ = self._reconstruct(geo, cam, idx, obj[todo], prim[todo], jit)
                     c = shade(geo, surf, cam.position, surf.obj > 0)

@@ -5,6 +5,9 @@ its scene time lasts; a supersampling technique's sub-frames are not shared with
 """
 from __future__ import annotations
 
+import inspect
+import traceback
+
 import numpy as np
 from tqdm import tqdm
 
@@ -23,10 +26,8 @@ class TechniqueError(ValueError):
 
 
 def _failure(scene: str, label: str, tech, step: Step, exc: Exception) -> str:
-    import traceback
     where = traceback.extract_tb(exc.__traceback__)
     at = f" ({where[-1].filename}:{where[-1].lineno})" if where else ""
-    import inspect
     try:
         src = inspect.getfile(type(tech))         # a user's file: its path, not its loader's module name
     except (TypeError, OSError):

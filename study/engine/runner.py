@@ -175,10 +175,11 @@ class Study:
                     seeds = P.settled(memo["store"], self.precision, probes) if seeded and not memo["replayed"] else {}
                     if seeds:
                         self.levels.update(seeds)
-                        self.log(f"precision: {len({x[:2] for x in seeds})} of {len(probes)} tests start at the bound an earlier study settled")
+                        seeded_tests = {x[:2] for x in seeds}
+                        self.log(f"precision: {len(seeded_tests)} of {len(probes)} tests start at the bound an earlier study settled")
                         # their agreement and video are planned now, beside the new columns' runs: an
                         # earlier study's bound usually holds (else they are made again at the finer one)
-                        early = _seeded_early(probes, {x[:2] for x in seeds}, {p.name for p in self.profile.ghosting})
+                        early = _seeded_early(probes, seeded_tests, {p.name for p in self.profile.ghosting})
                         continue
                     if memo["replayed"]:
                         self.levels, tried, over, self.drifts = P.from_record(memo["replayed"])
