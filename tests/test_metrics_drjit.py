@@ -276,6 +276,12 @@ def test_one_image_against_several_references_changes_no_bit():
             assert set(maps) == (set(want_maps) if keep else set())
             for k in maps:
                 assert np.array_equal(maps[k], want_maps[k]), k
+        # a ghosting test's frames (Protocol.hdr False): the same figures, none in linear HDR
+        ldr = metrics.all_metrics_against(refs, x_lin, x_disp, x8, want_maps=[True, False, True], hdr=False)
+        for (figs, maps), (full, full_maps) in zip(ldr, got):
+            assert figs["flip_hdr"] is None and figs["relmse_hdr"] is None and "flip_hdr" not in maps
+            assert figs == {**full, "flip_hdr": None, "relmse_hdr": None}
+            assert set(maps) == set(full_maps) - {"flip_hdr"}
     assert all(any(k[0] == "ssim" for k in r[3]) for r in refs)     # the references' moments kept
     from study.metrics import flip as F
     xmemo = {}

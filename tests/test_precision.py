@@ -504,3 +504,32 @@ def test_a_settled_test_s_agreement_runs_while_other_tests_still_refine(tmp_path
     assert "agreement" in late_rounds[-1][1] and figures(late.agreements) == figures(res.agreements)
     assert sorted(late.agreements) == ["tiny_moving", "tiny_still"]
     assert late.precision == res.precision
+
+
+@pytest.mark.long(seconds=15)
+def test_a_ghosting_test_is_judged_and_refined_on_the_figures_it_prints(tmp_path, monkeypatch):
+    """A ghosting table prints MSE, PSNR, SSIM and FLIP LDR per frame and the temporal RMS: those
+    alone set its references' bounds (FLIP HDR, printed by no ghosting table, had set
+    hairball_rotating_lit's), and its frames are not judged in HDR; a static test is bound by,
+    and prints, every figure."""
+    from study_fixtures import write_scenes
+    from study.config.profile import get_profile
+    from study.config.protocols import GHOSTING_FIGURES
+    from study.config.techniques import TechniqueConfig
+    from study.engine import runner as RN
+    scenes = write_scenes(tmp_path)
+    seen, real = [], RN.decide
+    monkeypatch.setattr(RN, "decide", lambda now, *a, **k: seen.append(now) or real(now, *a, **k))
+    s = RN.Study(get_profile("quick"), cache_root=tmp_path / "c", progress=False)
+    res = s.run(scenes, [TechniqueConfig.parse(x) for x in ("taa_baseline", "noaa")], agreement=False)
+    bound = {kind: {k[-1] for now in seen for test, figs in now.items() for k in figs
+                    if (test[1] == "static") == (kind == "static")} for kind in ("static", "ghosting")}
+    assert bound["ghosting"] == set(GHOSTING_FIGURES) | {"temporal"}, bound
+    assert {"flip_hdr", "relmse_hdr", "ssim_volume", "snr", "ssim", "flip_ldr"} <= bound["static"]
+    ghosts = [g for gs in res.ghosts.values() for g in gs]
+    assert ghosts and res.statics
+    for g in ghosts:
+        for per in g.per_frame.values():
+            assert all(v["flip_hdr"] is None and v["relmse_hdr"] is None and v["flip_ldr"] > 0 for v in per.values())
+    for r in res.statics:
+        assert all(v["flip_hdr"] > 0 for per in r.per_frame.values() for v in per.values())

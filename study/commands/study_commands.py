@@ -77,6 +77,13 @@ def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
         plan = planner.plan(names, configs, agreement=prof.agreement, sweep=SPARSE_SWEEP if prof.sweep else (),
                             sharpen=sharpen_sweep_configs(prof.sharpen_sweep))[0]
         work = E.work(plan, None if from_scratch else study.cache)
+        from study.engine import disk as D
+        need = D.needs(plan, planner.planner)
+    gb = 2 ** 30
+    disk = {"references_gb": need["references"] / gb, "maps_gb": need["maps"] / gb,
+            "runs_whole_gb": sum(w for w, _ in need["tests"].values()) / gb,
+            "runs_kept_gb": sum(k for _, k in need["tests"].values()) / gb,
+            "free_gb": D.free_bytes(study.cache.root) / gb}
     rows, totals = [], {}
     for name, sw in work.items():
         row = {"scene": name, "resolution": [sw.width, sw.height], "references": sw.references,
@@ -100,13 +107,16 @@ def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
             for k, v in row["seconds"].items():
                 totals[k] = totals.get(k, 0.0) + v
         rows.append(row)
-    doc = {"study": prof.name, "tasks": plan.counts(), "complete": len(plan.cached), "scenes": rows}
+    doc = {"study": prof.name, "tasks": plan.counts(), "complete": len(plan.cached), "scenes": rows, "disk": disk}
     if measure:
         doc["seconds"] = totals
     if as_json:
         click.echo(_strict_json(doc))
         return
     click.echo(f"{prof.name}: tasks to compute {plan.counts() or 'none'}, {len(plan.cached)} complete")
+    click.echo(f"disk: references {disk['references_gb']:.1f} GB, runs {disk['runs_whole_gb']:.1f} GB whole while "
+               f"their tests refine ({disk['runs_kept_gb']:.1f} GB once pruned to the frames the report reads), "
+               f"maps {disk['maps_gb']:.1f} GB; {disk['free_gb']:.1f} GB free in the cache's disk (study.engine.disk)")
     head = "scene | res | refs | raster | subframes | steps | judged | agreement"
     if measure:
         head += " | ref s/frame | metrics s/frame | est. ref min | est. total min"

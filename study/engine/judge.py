@@ -47,7 +47,7 @@ def metrics_task(ctx, scene_spec: str, w: int, h: int, items: list, ref_settings
                  deps=()) -> dict:
     """items: one per technique, {run_folder, run_key, frame_times (frame id -> scene time),
     maps_for (frame ids whose maps are kept), keep (frame ids of the run to keep once judged, or
-    None for all), key, folder}. `ref_settings`: scene time -> the settings of its reference (each
+    None for all), hdr (judged in linear HDR too: Protocol.hdr), key, folder}. `ref_settings`: scene time -> the settings of its reference (each
     instant of a test has its own bound: study.engine.precision). Returns the records by metrics key."""
     store = _setup(ctx)
     scene = load_scene(scene_spec)
@@ -97,7 +97,7 @@ def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict, display_set
     cache = ReferenceCache(Path(ctx.cache_root))
     state = [{"per_frame": {}, "uncertainty": {}, "maps": {}, "references": {},
               "temporal": {h: M.TemporalInstability() for h in HALVES}} for _ in items]
-    known = [FrameFigures(store, scene.name, it["run_key"]) for it in items]
+    known = [FrameFigures(store, scene.name, it["run_key"], it.get("hdr", True)) for it in items]
     for t in sorted(by_time):
         ref = cache.get(scene, t, w, h, **ref_settings[t])[0]
         # one transform for all three; at a test's probe the reference is the probe: not read twice
@@ -117,7 +117,8 @@ def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict, display_set
             keep = [hv == "" and f in it["maps_for"] for hv in refs]
             figs = None if any(keep) else known[i].get(f, ref.key, dref.key)
             if figs is None:
-                judged = M.all_metrics_against(list(refs.values()), x_lin, x_disp, x8, want_maps=keep)
+                judged = M.all_metrics_against(list(refs.values()), x_lin, x_disp, x8, want_maps=keep,
+                                               hdr=it.get("hdr", True))
                 figs = {hv: got for hv, (got, _) in zip(refs, judged)}
                 st["maps"].update({f"maps_{f:04d}.exr": maps for (_, maps), k in zip(judged, keep) if k})
                 known[i].put(f, ref.key, dref.key, figs)
@@ -147,10 +148,11 @@ class FrameFigures:
     lock (two tasks may judge one run). Keyed by the run and the metric code: a frame's figures
     depend on nothing else but the two reference keys."""
 
-    def __init__(self, store, scene: str, run_key: str):
+    def __init__(self, store, scene: str, run_key: str, hdr: bool = True):
         from provenance import task_key
         from study.engine.plan import CODE
-        self.store, self.key = store, task_key("frame-figures", {}, [run_key], code=CODE["metrics"])
+        self.store, self.key = store, task_key("frame-figures", {} if hdr else {"hdr": False}, [run_key],
+                                               code=CODE["metrics"])
         self.path = store.record_path("frame-figures", scene, self.key)
         self.old = (store.load_record(self.path, self.key) or {}).get("figures", {})
         self.new: dict = {}

@@ -123,7 +123,7 @@ def _normalized_steps(scene, protocol: Protocol, schedule: list, inp, seen: tupl
 class Planner:
     def __init__(self, ctx: T.Context, ref_settings: dict, agreement_samples: int | None,
                  ref_settings_of: dict | None = None, display_settings: dict | None = None, video=None,
-                 video_final: bool | frozenset = False, prune: bool = True):
+                 video_final: bool | frozenset = False, prune: bool | frozenset = True):
         """`ref_settings_of`: (scene name, protocol name) -> the references' settings of that test
         where they differ from `ref_settings` (the precision its figures need; study.engine.precision).
         `display_settings`: the references every frame's display transform comes from
@@ -133,7 +133,7 @@ class Planner:
         the runs it will read keep every judged frame.
         `prune`: a metrics task prunes its runs to their kept frames once judged; without, the runs
         stay whole for a later round's references (the runner prunes a test's runs once it settles:
-        prune_runs)."""
+        prune_runs); or the tests ((scene, protocol)) whose runs are pruned (study.engine.disk)."""
         from study.engine.store import Store
         self.ctx, self.ref_settings, self.agreement_samples = ctx, dict(ref_settings), agreement_samples
         self.ref_settings_of = dict(ref_settings_of or {})
@@ -228,7 +228,8 @@ class Planner:
             ts = sorted(set(test.frame_times[c.label].values()))
             if ("frames", inp.sampling) not in steps:   # the judged frames depend on the sampling alone
                 steps[("frames", inp.sampling)] = Normalized(test.frame_times[c.label])
-            mkey = task_key("metrics", {"frames": steps[("frames", inp.sampling)], "maps": mf},
+            mkey = task_key("metrics", {"frames": steps[("frames", inp.sampling)], "maps": mf,
+                                        **({} if protocol.hdr else {"hdr": False})},
                             [key] + [ref_keys[t] for t in ts] + [disp_keys[t] for t in ts], code=CODE["metrics"])
             mfolder = self.store.root / "metrics" / scene.name / mkey
             test.metrics_keys[c.label], test.metrics_folders[c.label] = mkey, str(mfolder)
@@ -273,7 +274,7 @@ class Planner:
                     self._reference(spec, scene, t, w, h, s) for t in ts for s in (at[t], self.display_settings)))
                 items = [{"label": c.label, "run_folder": test.run_folders[c.label], "run_key": test.run_keys[c.label],
                           "frame_times": test.frame_times[c.label], "maps_for": test.maps_for[c.label],
-                          "keep": test.keep[c.label] if self.prune else None,
+                          "keep": test.keep[c.label] if self.prunes(test) else None, "hdr": test.protocol.hdr,
                           "key": test.metrics_keys[c.label], "folder": test.metrics_folders[c.label]} for c in mine]
                 gkey = task_key("metrics-of", sorted(it["key"] for it in items))
                 self.plan.tasks[gkey] = Task(gkey, "metrics", J.metrics_task,
@@ -318,6 +319,10 @@ class Planner:
             self.plan.tasks[gkey] = Task(gkey, "video", V.video_task, (
                 self.ctx, spec, test.width, test.height, [it], {t: at[t] for t in it["ts"]},
                 self.display_settings, video.key_data(), test.protocol.kind), deps)
+
+    def prunes(self, test: Test) -> bool:
+        """Whether the test's metrics task prunes its runs once judged."""
+        return self.prune is True or (isinstance(self.prune, frozenset) and (test.scene, test.protocol.name) in self.prune)
 
     def prune_runs(self, settled) -> int:
         """Prune the runs of the plan's tests for which `settled((scene, protocol))` holds to the frames

@@ -14,7 +14,9 @@ uncertainty is measured, not assumed, in two parts:
     (references.estimates: unbiased): the same figure is 220.76 +- 0.49 at 8 LSB against 220.87.
     What is left shrinks with the bound (taken in proportion), so the change of a figure from a
     coarser bound b0 to the bound b estimates what is left of it at b: change x b / (b0 - b).
-Each test (a scene under one protocol: its static test, each ghosting protocol) has its own bound,
+Only the figures a test prints bound it (`printed`: a ghosting test's MSE, PSNR, SSIM, FLIP LDR per
+frame and its temporal RMS; FLIP HDR, which no ghosting table printed, had set hairball_rotating_lit's
+bounds). Each test (a scene under one protocol: its static test, each ghosting protocol) has its own bound,
 since their figures need different precisions: a near-converged SSAA 16x on pipe (MSE 0.2) needs
 ~0.25 LSB, a ghosting TAA (MSE ~10^2) far less; and within a test each instant (a ghosting
 sequence's frames) has its own: a frame's figures refine that frame's reference, the temporal RMS
@@ -55,6 +57,12 @@ def figures_of(res) -> dict:
         if t is not None and math.isfinite(t):
             out[(l, None, "temporal")] = (t, res.temporal_u.get(l) or 0.0)
     return out
+
+
+def printed(protocol, metric: str) -> bool:
+    """Whether a test under `protocol` prints `metric` (Protocol.figures; the temporal RMS always):
+    a figure no table prints sets no bound (figures.json still states its uncertainty)."""
+    return protocol.figures is None or metric in protocol.figures or metric == "temporal"
 
 
 def over_tolerance(figures: dict, tolerances: dict) -> list[tuple]:

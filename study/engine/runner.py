@@ -25,6 +25,7 @@ from study.config.techniques import TechniqueConfig
 from study.engine.execute import Executor, Session
 from study.engine.plan import Planner
 from study.config.precision import Precision
+from study.engine import disk as D
 from study.engine import precision as P
 from study.engine.precision import decide, figures_of
 from study.engine.results import Artefacts, StudyResults, TestResult, view
@@ -157,6 +158,7 @@ class Study:
         # a test's as soon as it is settled (`early`: its tasks fill the rounds other tests still refine in)
         settled, early = not figures, frozenset()
         memo, probes = None, None     # the record of this study's decisions (figures rule)
+        pruned = None                 # the tests whose runs are pruned once judged (study.engine.disk)
         from study.engine.store import Store
         inputs = P.inputs_key(self, specs, configs, [agreement, sweep, ghosting, sharpen, seeded]) if figures else None
         if inputs and (memo := P.recall(Store(self.cache.root), inputs)):    # no probe plan needed
@@ -168,7 +170,14 @@ class Study:
                 with code_snapshot():
                     plan, scenes, statics, ghosts, sweeps, sharpens = self.plan(specs, configs, agreement, sweep, ghosting,
                                                                       final=settled or early, sharpen=sharpen,
-                                                                      prune=not figures)
+                                                                      prune=True if not figures else pruned or frozenset())
+                # which tests' runs the disk keeps whole while they refine (each round: finer references take room)
+                was = pruned or frozenset()
+                pruned = D.fit(D.needs(plan, self.planner), D.free_bytes(self.cache.root), figures,
+                               self.cache.root, was, self.log)
+                if figures and pruned != was:
+                    continue            # planned again: their metrics prune their runs
+
                 if figures and memo is None:      # the probe's plan: did a study decide from it before?
                     memo = P.decisions(Store(self.cache.root), self.precision, plan, agreement)
                     probes = {(t.scene, t.protocol.name): sorted(t.reference_tasks.values()) for t in statics + ghosts + sweeps}
@@ -215,7 +224,7 @@ class Study:
                 for t in statics + ghosts + sweeps:        # a sweep shares its protocol's references
                     now.setdefault((t.scene, t.protocol.name), {}).update(
                         {(t.protocol.name, *k): v for k, v in figures_of(self._result(t, results, {})).items()
-                         if k[0] not in self.precision.exempt})
+                         if k[0] not in self.precision.exempt and P.printed(t.protocol, k[-1])})
                 levels = {**self.levels, **{(*k, t): self.level_of(*k, t) for k in instants for t in instants[k].values()}}
                 finer, judged = decide(now, before, levels, self.precision, over, self.drifts, instants)
                 # a settled test's runs drop the frames the report does not read; the others stay

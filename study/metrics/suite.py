@@ -114,10 +114,11 @@ def all_metrics(ref_lin: np.ndarray, ref_disp: np.ndarray, ref8: np.ndarray,
 
 
 def all_metrics_against(refs: list, x_lin: np.ndarray | None, x_disp: np.ndarray, x8: np.ndarray,
-                        want_maps: list | None = None) -> list:
+                        want_maps: list | None = None, hdr: bool = True) -> list:
     """all_metrics of one image against each reference of `refs` ((linear, display, 8-bit, memo)
     each: the reference and its two halves), the image's own half of SSIM and FLIP computed once
-    for all of them. Same values as all_metrics (tested). `want_maps`: a flag per reference."""
+    for all of them. Same values as all_metrics (tested). `want_maps`: a flag per reference.
+    `hdr=False`: no figure in linear HDR (FLIP HDR, relMSE: None), for a test that prints none."""
     for name, a in [("technique", x_lin), ("technique display", x_disp)] + [("reference", r[0]) for r in refs]:
         if a is not None and not np.all(np.isfinite(a)):
             raise ValueError(f"{name} image holds {int(np.count_nonzero(~np.isfinite(a)))} NaN/Inf values")
@@ -131,7 +132,7 @@ def all_metrics_against(refs: list, x_lin: np.ndarray | None, x_disp: np.ndarray
         figs = {"mse": m, "rmsd": math.sqrt(m), "psnr": psnr_from_mse(m), "snr": snr(ref8, x8), "ssim": s,
                 "ssim_volume": s_vol, "flip_ldr": fl, "flip_hdr": None, "relmse_hdr": None}
         maps = {"ssim": smap, "flip_ldr": fmap}
-        if x_lin is not None:
+        if x_lin is not None and hdr:
             figs["flip_hdr"], maps["flip_hdr"] = F.flip(np.maximum(ref_lin, 0), np.maximum(x_lin, 0), "HDR",
                                                         memo=memo, xmemo=xmemo)
             figs["relmse_hdr"] = relmse(ref_lin, x_lin)

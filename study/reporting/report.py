@@ -12,6 +12,7 @@ import numpy as np
 
 from display import DisplayTransform
 from provenance.files import write_bytes_atomic, write_text_atomic
+from study.config.protocols import GHOSTING_FIGURES
 from study.engine.results import shown_frames
 from study.reporting import plots
 from study.reporting.encode import display_8bit, exr_bytes, magma, png, slug
@@ -25,7 +26,7 @@ from study.reporting.tables import METRIC_LABELS, UNCERTAINTY_NOTE, Table, fmt, 
 from study.reporting.thesis import THESIS_COLUMNS
 
 STATIC_METRICS = ["mse", "rmsd", "psnr", "snr", "ssim", "flip_ldr", "flip_hdr", "relmse_hdr", "ms"]
-GHOST_METRICS = ["mse", "psnr", "ssim", "flip_ldr"]
+GHOST_METRICS = list(GHOSTING_FIGURES)
 
 
 def _state(path: Path) -> list:
@@ -276,9 +277,11 @@ class Report(Summaries, Upscaling, SharpenSweep):
                              "–" if worst is None else f"{worst[3]} of {worst[1]} ±{worst[4]:.2g} > {worst[5]:.2g}"])
         tol = ", ".join(f"{k} {v:g}" for k, v in sorted(res.tolerances.items()))
         note = ("Each test's references are probed at a coarse per-pixel bound, then rendered at the bound its "
-                "figures ask for, instant by instant (final: bound (instants at it)), and checked there, while any figure's reference uncertainty (its halves' plus its "
+                "figures ask for, instant by instant (final: bound (instants at it)), and checked there, while any printed figure's reference uncertainty (its halves' plus its "
                 "drift from the coarser bound) exceeds its tolerance (" + tol + "; relative and relmse as "
-                "fractions of the figure).")
+                "fractions of the figure). A ghosting test prints, and is refined for, " + ", ".join(
+                    METRIC_LABELS[m] for m in GHOST_METRICS) + " and the temporal RMS; its frames are not "
+                "judged in HDR.")
         self._table("reference_precision", Table("Reference precision: bounds set by the figures",
                                                  ["scene", "test", "rule", "bounds tried (LSB)", "final (LSB)",
                                                   "figures over", "worst"], rows, note), inputs)
