@@ -11,8 +11,8 @@ GB = 2 ** 30
 def test_fit_keeps_the_cheapest_runs_whole_while_they_fit_and_prunes_the_rest():
     need = {"references": 3 * GB, "maps": 1 * GB,
             "tests": {("a", "static"): (2 * GB, 1 * GB), ("b", "ghosting"): (10 * GB, 1 * GB),
-                      ("c", "ghosting"): (5 * GB, 1 * GB)}}
-    # floor: references 3 + maps 1 + kept 3 + margin 2 + 4 in flight x the largest pruned-away 9 = 45 GB
+                      ("c", "ghosting"): (5 * GB, 1 * GB)}, "run": 9 * GB}
+    # floor: references 3 + maps 1 + kept 3 + margin 2 + 4 in flight x the largest run's pruned-away 9 = 45 GB
     floor = (3 + 1 + 3 + 2 + 4 * 9) * GB
     logs = []
     assert D.fit(need, floor + 14 * GB, True, Path("/c"), log=logs.append) == frozenset()      # 1 + 9 + 4 fit
@@ -53,8 +53,7 @@ def test_a_study_short_of_disk_prunes_its_largest_runs_and_makes_them_again_with
     assert not plan.tasks and set(need["tests"]) >= {("tiny_moving", "static"), ("tiny_moving", "ghosting")}
     big = max(need["tests"], key=lambda k: need["tests"][k][0] - need["tests"][k][1])
     tests = need["tests"]
-    floor = need["references"] + need["maps"] + sum(k for _, k in tests.values()) + D.MARGIN \
-        + D.IN_FLIGHT * max(w - k for w, k in tests.values())
+    floor = need["references"] + need["maps"] + sum(k for _, k in tests.values()) + D.MARGIN + D.IN_FLIGHT * need["run"]
     room = sum(w - k for w, k in tests.values()) - (tests[big][0] - tests[big][1])   # all but the largest
     monkeypatch.setattr(D, "free_bytes", lambda folder: floor + room)
     s3, _, logs = _study(tmp_path / "short", scenes)

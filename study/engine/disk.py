@@ -29,12 +29,12 @@ class DiskError(TaskError):
 
 def needs(plan, planner) -> dict:
     """What the plan writes: {'references', 'maps': bytes, 'tests': (scene, protocol) -> (bytes
-    of its new runs whole, bytes once pruned to their kept frames)}. A run two tests read counts
-    once, for the first."""
+    of its new runs whole, bytes once pruned to their kept frames), 'run': the most one run's
+    pruning frees}. A run two tests read counts once, for the first."""
     refs = sum(t.args[3] * t.args[4] * REFERENCE_BYTES for t in plan.tasks.values()
                if t.kind == "reference" and not t.likely_cached)
     made = set(planner._run_task_of)            # run keys this plan makes
-    seen, tests, maps = set(), {}, 0
+    seen, tests, maps, run = set(), {}, 0, 0
     for test in plan.tests:
         px = test.width * test.height
         whole = kept = 0
@@ -43,14 +43,14 @@ def needs(plan, planner) -> dict:
                 continue
             seen.add(key)
             n = len(test.frame_times[label])
-            whole += n * px * FRAME_BYTES
-            kept += (n if test.keep[label] is None else len(test.keep[label])) * px * FRAME_BYTES
+            k = n if test.keep[label] is None else len(test.keep[label])
+            whole, kept, run = whole + n * px * FRAME_BYTES, kept + k * px * FRAME_BYTES, max(run, (n - k) * px * FRAME_BYTES)
             maps += len(test.maps_for[label]) * px * MAPS_BYTES
         if whole:
             k = (test.scene, test.protocol.name)
             w0, k0 = tests.get(k, (0, 0))
             tests[k] = (w0 + whole, k0 + kept)
-    return {"references": refs, "maps": maps, "tests": tests}
+    return {"references": refs, "maps": maps, "tests": tests, "run": run}
 
 
 def fit(need: dict, free: int, figures: bool, folder: Path, already: frozenset = frozenset(),
@@ -60,13 +60,14 @@ def fit(need: dict, free: int, figures: bool, folder: Path, already: frozenset =
     `figures` False (the per-pixel rule, nothing refined) every test is. Raises DiskError if the
     plan does not fit even so (checked each round: finer references take room too)."""
     tests = need["tests"]
-    floor = need["references"] + need["maps"] + sum(k for _, k in tests.values()) + MARGIN
-    floor += IN_FLIGHT * max((w - k for w, k in tests.values()), default=0)
+    kept = need["maps"] + sum(k for _, k in tests.values())
+    flight = IN_FLIGHT * need.get("run", 0)          # runs whole between their run and metrics tasks
+    floor = need["references"] + kept + flight + MARGIN
     gb = 2 ** 30
     if floor > free:
         raise DiskError(f"the study needs about {floor / gb:.1f} GB in the cache folder {folder} (references "
-                        f"{need['references'] / gb:.1f} GB, the runs' kept frames and maps "
-                        f"{(floor - need['references'] - MARGIN) / gb:.1f} GB, {MARGIN / gb:.0f} GB spare) and "
+                        f"{need['references'] / gb:.1f} GB, the runs' kept frames and maps {kept / gb:.1f} GB, "
+                        f"{IN_FLIGHT} runs being judged {flight / gb:.1f} GB, {MARGIN / gb:.0f} GB spare) and "
                         f"{free / gb:.1f} GB is free: free some, or set TAA_STUDY_CACHE to a larger disk")
     if not figures:
         return frozenset(tests)
