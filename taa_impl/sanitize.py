@@ -12,6 +12,8 @@ This runs in NumPy on the input arrays (it is a no-op copy when everything is fi
 """
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
 _SHAPES = {"color": 3, "albedo": 3, "motion": 2, "depth": 0, "prev_depth": 0, "object_id": 0}
@@ -35,6 +37,34 @@ def fill_from_neighbours(img: np.ndarray, bad: np.ndarray, fallback: float) -> n
     c = cnt.reshape(h, w, *([1] * (img.ndim - 2)))
     repl = np.where(c > 0, acc / np.maximum(c, 1), np.float32(fallback)).astype(np.float32)
     return np.where(bad.reshape(c.shape), repl, img).astype(np.float32)
+
+
+# Read-only buffers already found finite, by id (weakly: a freed array's entry goes with it). The
+# study's frame source hands every technique of a step the same read-only buffers, so the check
+# is made once per frame, not once per technique; a writeable buffer is checked on every call.
+_FINITE: dict[int, weakref.ref] = {}
+
+
+def read_only(a) -> bool:
+    """Whether no array in `a`'s chain of bases can be written (a read-only view of a writeable
+    array can change under it)."""
+    while isinstance(a, np.ndarray):
+        if a.flags.writeable:
+            return False
+        a = a.base
+    return True
+
+
+def _known_finite(a: np.ndarray) -> bool:
+    r = _FINITE.get(id(a))
+    return r is not None and r() is a and read_only(a)
+
+
+def _remember_finite(a: np.ndarray) -> None:
+    if not read_only(a):
+        return
+    k = id(a)
+    _FINITE[k] = weakref.ref(a, lambda _r, k=k: _FINITE.pop(k, None))
 
 
 def _bad_pixels(a: np.ndarray) -> np.ndarray:
@@ -62,10 +92,14 @@ def check_and_repair(frame: dict, needs, shape: tuple[int, int], far: float) -> 
         if key not in out:
             continue
         a = out[key]
+        if _known_finite(a):
+            counts[key] = 0
+            continue
         # Fast path: NaN and +-Inf make the float64 sum non-finite, so a finite sum proves a clean
         # buffer in one pass (an overflowing sum only sends us to the exact check).
         if np.isfinite(np.sum(a, dtype=np.float64)):
             counts[key] = 0
+            _remember_finite(a)
             continue
         bad = _bad_pixels(a)
         counts[key] = n = int(bad.sum())

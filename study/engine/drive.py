@@ -11,6 +11,7 @@ import traceback
 import numpy as np
 from tqdm import tqdm
 
+from backend import aligned
 from display import DisplayTransform
 from raster import Rasterizer
 from raster.visibility import RasterError
@@ -36,6 +37,19 @@ def _failure(scene: str, label: str, tech, step: Step, exc: Exception) -> str:
             f"(step {step.k}): {type(exc).__name__}: {exc}{at}")
 
 
+def _shared(a: np.ndarray) -> np.ndarray:
+    """A buffer every technique of a step reads: 64-byte aligned once (no technique's upload copies
+    it again, backend.aligned), and read-only down its chain of bases, so that one technique cannot
+    change another's input and the first one's finiteness check holds for the rest
+    (taa_impl.sanitize)."""
+    a = aligned(np.ascontiguousarray(a))
+    x = a
+    while isinstance(x, np.ndarray):
+        x.flags.writeable = False
+        x = x.base
+    return a
+
+
 class FrameSource:
     """Raster frames of one scene, each distinct (time, jitter, previous time) rendered once.
     `aspect`: the output's frustum, for a render below the output's size (an upscaler's)."""
@@ -55,7 +69,8 @@ class FrameSource:
     def frame(self, t: int, jitter, prev_t: int) -> dict:
         key = frame_key(t, jitter, prev_t)
         if key not in self._memo:
-            self._memo[key] = self.raster.render(t, jitter, self.buffers, prev_t=prev_t)
+            bufs = self.raster.render(t, jitter, self.buffers, prev_t=prev_t)
+            self._memo[key] = {k: _shared(v) for k, v in bufs.items()}
             self.rendered += 1
         return self._memo[key]
 
