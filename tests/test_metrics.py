@@ -49,3 +49,17 @@ def test_temporal_instability_zero_for_a_sequence_that_follows_the_reference():
     flicker = [seq[0], seq[1] + 6, seq[2]]
     # frame 1 is 6 too bright: both of its differences are off by 6 in every value
     assert metrics.temporal_instability(seq, flicker) == pytest.approx(6.0)
+
+
+def test_temporal_instability_is_exact_at_the_extremes_and_agrees_with_float64():
+    black = [np.zeros((3, 5, 3), np.uint8)] * 3
+    strobe = [np.full((3, 5, 3), v, np.uint8) for v in (0, 255, 0)]
+    assert metrics.temporal_instability(black, strobe) == 255.0   # |d| = 255 at every value, twice
+    rng = np.random.default_rng(7)
+    ref = [rng.integers(0, 256, (9, 11, 3), dtype=np.uint8) for _ in range(5)]
+    x = [rng.integers(0, 256, (9, 11, 3), dtype=np.uint8) for _ in range(5)]
+    r64, x64 = [a.astype(np.float64) for a in ref], [a.astype(np.float64) for a in x]
+    sq = [np.sum(((x64[i] - x64[i - 1]) - (r64[i] - r64[i - 1])) ** 2) for i in range(1, 5)]
+    assert metrics.temporal_instability(ref, x) == np.sqrt(np.sum(sq) / (4 * ref[0].size))
+    with pytest.raises(ValueError, match="8-bit"):
+        metrics.temporal_instability([a.astype(np.float32) for a in ref], x)

