@@ -17,6 +17,7 @@ from raster import Rasterizer
 from raster.visibility import RasterError
 from scenes import ResolvedScene
 from scenes.jitter import halton_offsets
+from taa_impl import sanitize
 from taa_impl.upscale import render_size
 
 from study.config.protocols import Step, frame_key, judged_steps, step_jitters
@@ -42,12 +43,7 @@ def _shared(a: np.ndarray) -> np.ndarray:
     it again, backend.aligned), and read-only down its chain of bases, so that one technique cannot
     change another's input and the first one's finiteness check holds for the rest
     (taa_impl.sanitize)."""
-    a = aligned(np.ascontiguousarray(a))
-    x = a
-    while isinstance(x, np.ndarray):
-        x.flags.writeable = False
-        x = x.base
-    return a
+    return sanitize.freeze(aligned(np.ascontiguousarray(a)))
 
 
 class FrameSource:
