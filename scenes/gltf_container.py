@@ -7,6 +7,7 @@ import hashlib
 import io
 import json
 import os
+import stat
 import struct
 import urllib.parse
 
@@ -21,6 +22,12 @@ _WRAP = {33071: "CLAMP_TO_EDGE", 33648: "MIRRORED_REPEAT"}
 _LINEAR = {9729, 9985, 9986, 9987}
 # Extensions whose content is read, or which change nothing the study renders.
 SUPPORTED_EXTENSIONS = {"KHR_mesh_quantization", "KHR_materials_emissive_strength", "EXT_texture_webp"}
+# Caps on what one file may make this process read: a buffer's declared byteLength (glTF's own
+# limit is 2**53 - 1), an image file named by uri, and the .gltf/.glb itself.
+MAX_BUFFER_BYTES = 2 ** 31
+MAX_IMAGE_BYTES = 2 ** 28
+MAX_FILE_BYTES = 2 ** 31 + 2 ** 20
+_REMOTE = {"http", "https", "ftp", "ftps", "s3", "gs"}
 
 
 class _Malformed(Exception):
@@ -37,8 +44,13 @@ class _Container:
     def __init__(self, full: str):
         self.full, self.dir = full, os.path.dirname(full)
         self.digests: list[str] = []
+        size = os.stat(full).st_size
+        if size > MAX_FILE_BYTES:
+            raise _Malformed("(file)", f"{size} bytes, more than the {MAX_FILE_BYTES} a glTF file may have here")
         with open(full, "rb") as fh:
-            raw = fh.read()
+            raw = fh.read(MAX_FILE_BYTES + 1)
+        if len(raw) > MAX_FILE_BYTES:
+            raise _Malformed("(file)", f"more than the {MAX_FILE_BYTES} bytes a glTF file may have here")
         self.digests.append(hashlib.sha256(raw).hexdigest())
         bin_chunk = None
         if raw[:4] == b"glTF":
@@ -55,8 +67,13 @@ class _Container:
             raise _Malformed("asset.version", f"only glTF 2.x is supported, got {version!r}")
         self.buffers = []
         for i, b in enumerate(self.json.get("buffers", [])):
+            declared = b.get("byteLength")
+            if not isinstance(declared, int) or isinstance(declared, bool) or not 1 <= declared <= MAX_BUFFER_BYTES:
+                raise _Malformed(f"buffers[{i}].byteLength", f"must be a whole number in 1..{MAX_BUFFER_BYTES}, "
+                                 f"got {declared!r}")
             if "uri" in b:
-                data = self.uri_bytes(b["uri"], f"buffers[{i}].uri")
+                # a file may be padded past its byteLength: only the declared bytes are read
+                data = self.uri_bytes(b["uri"], f"buffers[{i}].uri", limit=declared, truncate=True)
             elif i == 0 and bin_chunk is not None:
                 data = bin_chunk
             else:
@@ -92,7 +109,14 @@ class _Container:
             raise _Malformed("(GLB)", "has no JSON chunk")
         return doc, binary
 
-    def uri_bytes(self, uri: str, where: str) -> bytes:
+    def uri_bytes(self, uri, where: str, limit: int | None = None, truncate: bool = False) -> bytes:
+        """The bytes a buffer's or image's `uri` names: a `data:` URI, or a relative path that
+        resolves (symbolic links followed) to a regular file inside the glTF file's folder, at most
+        `limit` bytes of it (default MAX_IMAGE_BYTES; `truncate`: its first `limit` bytes, else a
+        larger file is refused). Anything else is refused by name; the file's content is never quoted."""
+        limit = MAX_IMAGE_BYTES if limit is None else limit
+        if not isinstance(uri, str):
+            raise _Malformed(where, f"uri must be a string, got {type(uri).__name__}")
         if uri.startswith("data:"):
             head, _, payload = uri.partition(",")
             try:
@@ -100,11 +124,42 @@ class _Container:
                     else urllib.parse.unquote_to_bytes(payload)
             except ValueError as exc:
                 raise _Malformed(where, f"bad data URI: {exc}") from None
-        path = os.path.join(self.dir, urllib.parse.unquote(uri))
-        if not os.path.isfile(path):
-            raise _Malformed(where, f"file not found: {path}")
-        with open(path, "rb") as fh:
-            data = fh.read()
+        scheme = urllib.parse.urlsplit(uri).scheme.lower()
+        if scheme in _REMOTE:
+            raise _Malformed(where, f"remote URIs are not fetched: {uri}")
+        if scheme:
+            raise _Malformed(where, f"URI scheme {scheme!r} is not read ({uri}); give a path relative to "
+                             "the glTF file's folder or a data: URI")
+        rel = urllib.parse.unquote(uri)
+        if "\0" in rel:
+            raise _Malformed(where, f"uri {uri!r} holds a NUL character")
+        if os.path.isabs(rel):
+            raise _Malformed(where, f"absolute paths are not read ({uri}); give a path relative to "
+                             "the glTF file's folder")
+        folder = os.path.realpath(self.dir)
+        path = os.path.realpath(os.path.join(folder, rel))
+        if os.path.commonpath([folder, path]) != folder:
+            raise _Malformed(where, f"uri {uri!r} resolves outside the glTF file's folder {folder}")
+        try:
+            st = os.stat(path)
+        except FileNotFoundError:
+            raise _Malformed(where, f"file not found: {path}") from None
+        except OSError as exc:
+            raise _Malformed(where, f"cannot read {path}: {exc.strerror}") from None
+        if not stat.S_ISREG(st.st_mode):
+            raise _Malformed(where, f"{path} is not a regular file")
+        if st.st_size > limit and not truncate:
+            raise _Malformed(where, f"{path} has {st.st_size} bytes, more than the {limit} a glTF "
+                             "file may name here")
+        try:
+            with open(path, "rb") as fh:
+                data = fh.read(limit + 1)
+        except OSError as exc:
+            raise _Malformed(where, f"cannot read {path}: {exc.strerror}") from None
+        if truncate:
+            data = data[:limit]
+        elif len(data) > limit:             # a file that grew since its stat
+            raise _Malformed(where, f"{path} has more than the {limit} bytes a glTF file may name here")
         self.digests.append(hashlib.sha256(data).hexdigest())
         return data
 

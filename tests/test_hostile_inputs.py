@@ -1,0 +1,114 @@
+"""Inputs a hostile or careless user gives: each is refused with exit status 2 (or its library
+exception) naming the file, field, value or address, without a traceback, without reading or
+writing outside what it names, and without leaving an output folder behind."""
+import hashlib
+import json
+import os
+
+import pytest
+from click.testing import CliRunner
+
+from scenes import SceneError
+from scenes.loader import load_scene_file
+from study.commands.cli import main
+from test_gltf_scene import _hand_gltf, scene_file
+
+SECRET = b"QZ-not-for-the-message-QZ"
+
+
+def _gltf_with(tmp_path, edit):
+    """hand.gltf in tmp/scene/ after `edit(doc)`; a secret file and a copy of its buffer beside
+    the folder (outside it)."""
+    folder = tmp_path / "scene"
+    folder.mkdir()
+    doc = _hand_gltf(folder)
+    (tmp_path / "outside.bin").write_bytes((folder / "hand.bin").read_bytes())
+    (tmp_path / "secret.txt").write_bytes(SECRET * 4)
+    edit(doc, folder)
+    (folder / "hand.gltf").write_text(json.dumps(doc))
+    return scene_file(folder, path="hand.gltf")
+
+
+def _set_buffer_uri(uri):
+    def edit(doc, folder):
+        doc["buffers"][0]["uri"] = uri(folder) if callable(uri) else uri
+    return edit
+
+
+def _set_image_uri(uri):
+    def edit(doc, folder):
+        doc["images"][0]["uri"] = uri(folder) if callable(uri) else uri
+    return edit
+
+
+def _symlink(name, target):
+    def make(folder):
+        os.symlink(target(folder) if callable(target) else target, folder / name)
+        return name
+    return make
+
+
+@pytest.mark.parametrize("edit, words", [
+    (_set_buffer_uri("../outside.bin"), ["buffers[0].uri", "'../outside.bin' resolves outside the glTF file's folder"]),
+    (_set_buffer_uri("%2e%2e/outside.bin"), ["buffers[0].uri", "'%2e%2e/outside.bin' resolves outside"]),
+    (_set_buffer_uri(lambda f: str(f.parent / "outside.bin")), ["buffers[0].uri", "absolute paths are not read"]),
+    (_set_buffer_uri(lambda f: "file://" + str(f.parent / "outside.bin")), ["URI scheme 'file' is not read"]),
+    (_set_buffer_uri(_symlink("link.bin", lambda f: f.parent / "outside.bin")), ["'link.bin' resolves outside"]),
+    (_set_buffer_uri(_symlink("zero.bin", "/dev/zero")), ["'zero.bin' resolves outside"]),
+    (_set_image_uri("../secret.txt"), ["images[0].uri", "'../secret.txt' resolves outside"]),
+    (_set_image_uri(lambda f: str(f.parent / "secret.txt")), ["images[0].uri", "absolute paths are not read"]),
+    (_set_buffer_uri("http://example.invalid/hand.bin"),
+     ["buffers[0].uri: remote URIs are not fetched: http://example.invalid/hand.bin"]),
+    (_set_image_uri("https://example.invalid/t.png"), ["images[0].uri: remote URIs are not fetched: https://"]),
+])
+def test_gltf_uris_stay_inside_the_scene_folder(tmp_path, edit, words):
+    f = _gltf_with(tmp_path, edit)
+    with pytest.raises(SceneError) as err:
+        load_scene_file(f)
+    msg = str(err.value)
+    for w in words:
+        assert w in msg, (w, msg)
+    assert "hand.gltf" in msg and "file not found" not in msg, msg
+    assert SECRET[:6].decode() not in msg and "QZ" not in msg, msg      # nothing of the file quoted
+    r = CliRunner().invoke(main, ["agree", "--scene", f])
+    assert r.exit_code == 2 and words[-1] in r.output and "Traceback" not in r.output, r.output
+
+
+def test_gltf_uri_that_is_not_a_regular_file(tmp_path):
+    def edit(doc, folder):
+        os.mkfifo(folder / "pipe.bin")      # opening it for reading would wait for a writer forever
+        doc["buffers"][0]["uri"] = "pipe.bin"
+    with pytest.raises(SceneError) as err:
+        load_scene_file(_gltf_with(tmp_path, edit))
+    assert "buffers[0].uri" in str(err.value) and "pipe.bin is not a regular file" in str(err.value)
+
+
+def test_gltf_buffer_is_read_to_its_byte_length_only(tmp_path):
+    def pad(doc, folder):
+        data = (folder / "hand.bin").read_bytes()
+        (folder / "hand.bin").write_bytes(data + b"\x00" * 4096)   # padded past byteLength
+    f = _gltf_with(tmp_path, pad)
+    s = load_scene_file(f)
+    data = (tmp_path / "outside.bin").read_bytes()                  # the unpadded buffer
+    assert hashlib.sha256(data).hexdigest() in s.asset_digests
+    for bad in (10 ** 15, 0, -4, 2.5, "12"):
+        def edit(doc, folder, bad=bad):
+            doc["buffers"][0]["byteLength"] = bad
+        (tmp_path / "b").mkdir()
+        with pytest.raises(SceneError) as err:
+            load_scene_file(_gltf_with(tmp_path / "b", edit))
+        assert f"buffers[0].byteLength: must be a whole number in 1..{2 ** 31}, got {bad!r}" in str(err.value)
+        import shutil
+        shutil.rmtree(tmp_path / "b")
+
+
+def test_gltf_image_file_size_is_capped(tmp_path, monkeypatch):
+    import scenes.gltf_container as gc
+    monkeypatch.setattr(gc, "MAX_IMAGE_BYTES", 64)   # the real cap is 256 MiB: too large to write here
+
+    def edit(doc, folder):
+        (folder / "big.png").write_bytes(b"\x89PNG" + b"\x00" * 200)
+        doc["images"][0]["uri"] = "big.png"
+    with pytest.raises(SceneError) as err:
+        load_scene_file(_gltf_with(tmp_path, edit))
+    assert "images[0].uri" in str(err.value) and "big.png has 204 bytes, more than the 64" in str(err.value)
