@@ -49,12 +49,25 @@ def find_libllvm() -> str:
     return good[-1][1]
 
 
+# The Mitsuba variants this project runs: RGB (shading and references use Color3f) with Dr.Jit's
+# JIT arrays (every technique is a Dr.Jit kernel; scalar_rgb has none).
+SUPPORTED_VARIANTS = {"llvm_ad_rgb": "the CPU, the default", "cuda_ad_rgb": "an NVIDIA GPU"}
+
+
 def requested_variant() -> str:
-    return os.environ.get("TAA_VARIANT", "llvm_ad_rgb")
+    return os.environ.get("TAA_VARIANT", "").strip() or "llvm_ad_rgb"
+
+
+def check_variant(variant: str) -> str:
+    """`variant` if this project runs on it, else BackendError naming TAA_VARIANT and the choices."""
+    if variant not in SUPPORTED_VARIANTS:
+        choices = ", ".join(f"{k} ({v})" for k, v in SUPPORTED_VARIANTS.items())
+        raise BackendError(f"TAA_VARIANT={variant!r} is not a variant this project runs; use one of: {choices}")
+    return variant
 
 
 def _configure() -> None:
-    variant = requested_variant()
+    variant = check_variant(requested_variant())
     if not variant.startswith("llvm"):
         return
     path = os.environ.get("DRJIT_LIBLLVM_PATH")
@@ -78,6 +91,9 @@ import drjit as dr  # noqa: E402
 import mitsuba as mi  # noqa: E402
 
 VARIANT = requested_variant()
+if VARIANT.startswith("cuda") and not dr.has_backend(dr.JitBackend.CUDA):
+    raise BackendError(f"TAA_VARIANT={VARIANT!r}: no CUDA device was found (Dr.Jit's CUDA backend did not "
+                       "start); unset TAA_VARIANT to run on the CPU (llvm_ad_rgb)")
 try:
     mi.set_variant(VARIANT)
 except Exception as exc:  # an unknown or unavailable variant (cuda without a GPU)
@@ -121,4 +137,4 @@ def array(cls, a, dtype=None):
     return cls(aligned(a, dtype).reshape(-1))
 
 
-__all__ = ["dr", "mi", "VARIANT", "BackendError", "find_libllvm", "opaque", "aligned", "array"]
+__all__ = ["dr", "mi", "VARIANT", "SUPPORTED_VARIANTS", "BackendError", "check_variant", "find_libllvm", "opaque", "aligned", "array"]

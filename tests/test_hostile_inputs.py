@@ -112,3 +112,27 @@ def test_gltf_image_file_size_is_capped(tmp_path, monkeypatch):
     with pytest.raises(SceneError) as err:
         load_scene_file(_gltf_with(tmp_path, edit))
     assert "images[0].uri" in str(err.value) and "big.png has 204 bytes, more than the 64" in str(err.value)
+
+
+def _cli(args, **env):
+    import subprocess
+    import sys
+    return subprocess.run([sys.executable, "-m", "study", *args], capture_output=True, text=True, timeout=120,
+                          env={**os.environ, **env})
+
+
+@pytest.mark.parametrize("variant, words", [
+    ("nosuch", ["TAA_VARIANT='nosuch' is not a variant this project runs", "llvm_ad_rgb", "cuda_ad_rgb"]),
+    ("scalar_rgb", ["TAA_VARIANT='scalar_rgb' is not a variant this project runs", "llvm_ad_rgb"]),
+    ("llvm_ad_spectral", ["TAA_VARIANT='llvm_ad_spectral' is not a variant"]),
+    ("cuda_ad_rgb", ["TAA_VARIANT='cuda_ad_rgb': no CUDA device was found"]),
+])
+def test_an_unsupported_taa_variant_exits_2_naming_it(variant, words):
+    from backend import dr
+    if variant.startswith("cuda") and dr.has_backend(dr.JitBackend.CUDA):
+        pytest.skip("this machine has a CUDA device")
+    r = _cli(["scenes"], TAA_VARIANT=variant)
+    assert r.returncode == 2, (r.returncode, r.stderr[-2000:])
+    for w in words:
+        assert w in r.stderr, (w, r.stderr)
+    assert "Traceback" not in r.stderr and r.stdout == "", r.stderr

@@ -1,5 +1,15 @@
 """The `taa-study` command: the group (study.commands.common) and its commands, registered on import."""
-from study.commands import scene_commands, study_commands  # noqa: F401  (they register their commands)
+import sys
+
+try:
+    from study.commands import scene_commands, study_commands  # noqa: F401  (they register their commands)
+except RuntimeError as exc:
+    # backend.BackendError at import (TAA_VARIANT, libLLVM): an environment to fix, not a crash.
+    # Matched by name: the failed import of `backend` took its module out of sys.modules.
+    if type(exc).__name__ != "BackendError":
+        raise
+    print(f"error: {exc}", file=sys.stderr)
+    sys.exit(2)
 from study.commands.common import main
 
 __all__ = ["main"]
