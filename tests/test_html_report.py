@@ -490,3 +490,74 @@ def test_browser_opens_on_the_findings_then_the_summary_tables_then_the_scenes(b
     assert "tiny" in top["warn"] and "44.17 dB < 45 dB" in top["warn"]
     assert top["mark"] and top["floor"] == "warn"
     assert not _console_errors(browser)
+
+
+LONG_LABELS = ["No AA", "FXAA", "SMAA", "Uncharted", "Improved", "Improved, no sharpen", "Uncharted, no sharpen",
+               "Uncharted, normalised sharpen", "Improved, Xu sharpen", "Sparse SS", "Ferrando", "SSAA 16x"]
+
+
+def _first_screen_study(out: Path) -> dict:
+    """fake_study with what a real study's first screen holds: an overview figure, a seven-column
+    findings table of long sentences and a headline table of twelve techniques (wider than any window)."""
+    data = fake_study(out)
+    _png(out / "plots/overview.png", np.full((480, 680, 3), 230))
+    data["overview"] = "plots/overview.png"
+    data["findings"] = [f"Claim {i}: the improved TAA beats Uncharted on every static scene of the thesis, "
+                        f"by {i}.2 ± 0.1 dB here against 1.3 dB there. " * 3 for i in range(9)]
+    header = ["claim", "thesis", "ours", "verdict", "cases reproduced", "against the thesis's ground truth",
+              "what explains it"]
+    rows = [[f"The improved TAA's PSNR beats the Uncharted TAA's on the static test, claim {i}", "+1.25 dB",
+             f"+0.{i}3 dB [+0.1, +0.{i}5] over 9 scene-protocol cases", "not reproduced" if i % 2 else "reproduced",
+             f"{i} / 9", f"{i} / 9 (+0.2)", "the sharpen kernel's strength explains 80 % of the difference"]
+            for i in range(9)]
+    data["tables"]["findings"] = {"title": "The thesis's claims", "header": header, "rows": rows, "links": []}
+    data["tables"]["headline"] = {
+        "title": "Headline", "header": ["scene", "protocol"] + LONG_LABELS + ["best PSNR", "± reference"],
+        "rows": [[f"scene_{i}", "thesis (16 frames, cold)"] + ["31.123 ± 0.01 / 0.9512" for _ in LONG_LABELS]
+                 + ["Improved, no sharpen", "0.01 / 0.0001"] for i in range(6)], "links": []}
+    return data
+
+
+@pytest.mark.parametrize("width", [1280, 1440, 1920])
+def test_browser_first_screen_shows_the_figure_and_the_verdicts_whole(browser, tmp_path, width):
+    page = html_report.write(tmp_path, _first_screen_study(tmp_path))
+    size = browser.get_window_size()
+    browser.set_window_size(width, 1000)
+    try:
+        _check_first_screen(browser, page, width)
+    finally:
+        browser.set_window_size(size["width"], size["height"])    # the module's other tests' window
+
+
+def _check_first_screen(browser, page: Path, width: int) -> None:
+    _open(browser, page)
+    got = browser.execute_script("""
+        const box = s => { const e = document.querySelector(s); if (!e) return null;
+                           const r = e.getBoundingClientRect(); return {left: r.left, right: r.right, top: r.top + scrollY}; };
+        const de = document.documentElement;
+        return {inner: window.innerWidth, client: de.clientWidth, scroll: de.scrollWidth,
+                verdicts: box('table.verdict'), figure: box('#overview-figure img'), prose: box('ul.findings'),
+                header: [...document.querySelectorAll('table.verdict th')].map(e => e.textContent),
+                verdict_cells: [...document.querySelectorAll('table.verdict td:nth-child(4)')].map(e => {
+                    const r = e.getBoundingClientRect(); return r.right; })};""")
+    assert got["inner"] == width
+    assert got["scroll"] <= got["client"], got                     # no sideways scrolling of the page
+    assert got["header"] == ["claim", "thesis", "ours", "verdict"]
+    assert got["verdicts"]["right"] <= got["client"] and max(got["verdict_cells"]) <= got["client"], got
+    assert got["verdicts"]["top"] < got["prose"]["top"] and got["figure"]["top"] < got["prose"]["top"]
+    assert got["verdicts"]["top"] < 1000 and got["figure"]["top"] < 1000    # both begin on the first screen
+    # a wide data table scrolls in its own box, its first column in view
+    side = browser.execute_script("""
+        const wrap = document.querySelector('#t-headline'), table = wrap.querySelector('table');
+        wrap.scrollIntoView({block: 'center'});
+        const before = wrap.scrollLeft; wrap.scrollLeft = 400;
+        const w = wrap.getBoundingClientRect(), cell = table.querySelector('tbody tr td');
+        const c = cell.getBoundingClientRect();
+        const hit = document.elementFromPoint(c.left + 3, c.top + c.height / 2);
+        return {overflows: table.scrollWidth > wrap.clientWidth, scrolled: wrap.scrollLeft, before,
+                wrap_left: w.left, cell_left: c.left, on_top: hit === cell || cell.contains(hit),
+                wrap_right: w.right};""")
+    assert side["overflows"] and side["scrolled"] > 0 and side["before"] == 0, side
+    assert abs(side["cell_left"] - side["wrap_left"]) <= 2 and side["on_top"], side
+    assert side["wrap_right"] <= got["client"]
+    assert not _console_errors(browser)

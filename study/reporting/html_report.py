@@ -7,6 +7,8 @@ PNGs from out/images and out/maps by relative path).
 `data` (JSON-serialisable; every path relative to out_dir, and every file it names must exist):
 
     {"title": str, "profile": str,
+     "findings": [sentence, ...],                    # optional: the prose findings
+     "overview": "plots/overview.png",               # optional: the first screen's figure (report.Report.overview)
      "resolution": {scene: [width, height]},
      "scenes": {scene: {
          "agreement": {name: value, ...} or None,    # study.engine.agreement's dict, shown under the scene
@@ -14,6 +16,7 @@ PNGs from out/images and out/maps by relative path).
          "plots": ["plots/....png", ...],            # optional: static figures shown under the scene
          "static": {protocol label: {
              "reference": "images/....png",
+             "maps_note": str,                        # optional: what the maps' hatching marks (map_noise)
              "techniques": {label: {"image": "images/....png",
                                     "ssim_map": "maps/..._ssim.png" or None,
                                     "flip_map": "maps/..._flip.png" or None,
@@ -26,7 +29,8 @@ PNGs from out/images and out/maps by relative path).
      "tables": {stem: {"title": str, "note": str (optional), "header": [str], "rows": [[str]],
                        "links": [[row, column, "images/....png"], ...]}}}
 
-Tables are shown in the order headline, reproduction, history_convergence, speed_error, then the
+The first screen holds the overview figure and the verdict table (the findings table's claim,
+thesis, ours and verdict columns, wrapped to the window); the prose findings follow. Tables are shown in the order headline, reproduction, history_convergence, speed_error, then the
 rest as given; a linked cell opens its image in the viewer that holds it (or the file itself).
 
 `collect(out_dir)` builds such a dict from a finished study folder alone (tables, images, maps,
@@ -48,6 +52,8 @@ from study.reporting.encode import slug
 TABLE_ORDER = ("findings", "headline", "reproduction", "sharpen_test", "history_convergence", "speed_error")
 # shown before the scenes, under the findings: what the study concludes, then the evidence
 SUMMARY_TABLES = ("findings", "headline", "reproduction", "sharpen_test")
+# the first screen's verdict table: these columns of the findings table (study.reporting.findings_text)
+VERDICT_COLUMNS = ("claim", "thesis", "ours", "verdict")
 KEYS_HELP = [
     ("1–9", "reference (1), techniques (2…)"), ("← → or [ ]", "previous / next image"),
     ("space", "back to the last image shown"), ("i s f", "image, SSIM map, FLIP map"),
@@ -92,6 +98,7 @@ def validate(out_dir: Path, data: dict) -> dict:
     _need(isinstance(findings, list) and all(isinstance(x, str) for x in findings), "findings",
           "expected a list of sentences")
     clean["findings"] = list(findings)
+    clean["overview"] = None if data.get("overview") is None else path(data["overview"], "overview")
     missed = data.get("missed") or {}
     _need(isinstance(missed, dict) and all(isinstance(v, list) for v in missed.values()), "missed",
           "expected a dict scene -> [targets missed]")
@@ -116,7 +123,9 @@ def validate(out_dir: Path, data: dict) -> dict:
             wp = f"{w}.static.{proto}"
             _need(isinstance(pd, dict) and isinstance(pd.get("techniques"), dict), wp,
                   "expected {'reference': path, 'techniques': {label: ...}}")
-            cp = {"reference": path(pd.get("reference"), f"{wp}.reference"), "techniques": {}}
+            _need(isinstance(pd.get("maps_note", ""), str), f"{wp}.maps_note", "expected a sentence")
+            cp = {"reference": path(pd.get("reference"), f"{wp}.reference"), "techniques": {},
+                  "maps_note": pd.get("maps_note", "")}
             for label, td in pd["techniques"].items():
                 wt = f"{wp}.techniques.{label}"
                 _need(isinstance(td, dict), wt, "expected a dict")
@@ -215,7 +224,8 @@ def render(data: dict) -> str:
     return env.get_template("report.html.j2").render(
         data=data, model={"viewers": viewer_model(data)}, links=links, table_order=_table_order(data["tables"]),
         keys_help=KEYS_HELP, script=src("report.js"), style=src("report.css"), slug=slug,
-        summary_tables=[t for t in SUMMARY_TABLES if t in data["tables"]], agreement_text=agreement_text)
+        summary_tables=[t for t in SUMMARY_TABLES if t in data["tables"]], agreement_text=agreement_text,
+        verdict_columns=VERDICT_COLUMNS)
 
 
 def agreement_text(agree: dict | None) -> str:

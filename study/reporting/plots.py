@@ -117,3 +117,56 @@ def vdp_maps(res, maps: dict) -> bytes:
     fig.suptitle(f"ColorVideoVDP difference, last frame: {res.scene} ({res.test})", fontsize=8)
     fig.tight_layout()
     return fig_bytes(fig)
+
+
+OVERVIEW_COLOURS = ("#7f7f7f", "#e377c2", "#17becf", "#d62728", "#1f77b4", "#2ca02c", "#ff7f0e", "#9467bd")
+
+
+def overview(results, columns: dict, thesis: dict | None = None, title: str = "") -> bytes:
+    """The study's question at a glance: per scene (rows) each column's PSNR as a dot with its ±
+    reference uncertainty (study.metrics.uncertainty) as a bar, and the thesis's published PSNR of
+    the same column as a hollow ring where the thesis has that scene.
+
+    results: TestResults of one static view; columns: shown name -> technique label (e.g. the thesis's
+    columns, study.config.profile.thesis_roles); thesis: scene -> {shown name: PSNR}."""
+    plt = _pyplot()
+    rows = [r for r in results if any(l in r.per_frame for l in columns.values())]
+    fig, ax = plt.subplots(figsize=(6.2, 0.34 * max(len(rows), 3) + 1.3))
+    k = len(columns)
+    for j, (name, label) in enumerate(columns.items()):
+        colour = OVERVIEW_COLOURS[j % len(OVERVIEW_COLOURS)]
+        off = (j - (k - 1) / 2) * 0.12
+        ys, xs, es, ty, tx = [], [], [], [], []
+        for i, r in enumerate(rows):
+            if label not in r.per_frame:
+                continue
+            n = r.frames[-1]
+            v = r.per_frame[label][n].get("psnr")
+            if v is None or not np.isfinite(v):
+                continue
+            u = r.uncertainty.get(label, {}).get(n, {}).get("psnr")
+            ys.append(i + off)
+            xs.append(v)
+            es.append(u if u is not None and np.isfinite(u) else 0.0)
+            tv = (thesis or {}).get(r.scene, {}).get(name)
+            if tv is not None:
+                ty.append(i + off)
+                tx.append(tv)
+        ax.errorbar(xs, ys, xerr=es, fmt="o", ms=4.5, color=colour, ecolor=colour, elinewidth=1.2, capsize=2,
+                    label=name, zorder=3)
+        if tx:
+            ax.scatter(tx, ty, s=30, facecolors="none", edgecolors=colour, linewidths=1.0, zorder=2)
+    ax.set_yticks(range(len(rows)), [r.scene for r in rows], fontsize=7)
+    ax.set_ylim(len(rows) - 0.5, -0.5)
+    for i in range(1, len(rows)):
+        ax.axhline(i - 0.5, color="#e5e5e5", lw=0.6, zorder=0)
+    ax.grid(axis="x", color="#eeeeee", lw=0.6)
+    ax.set_xlabel("PSNR (dB) against the reference; higher is better. Filled: ours ± reference uncertainty; "
+                  "ring: the thesis's", fontsize=6.5)
+    ax.tick_params(axis="x", labelsize=7)
+    if title:
+        ax.set_title(title, fontsize=8)
+    ax.legend(fontsize=6.5, loc="upper center", bbox_to_anchor=(0.5, -0.16 - 0.3 / max(len(rows), 3)),
+              ncol=min(k, 5), frameon=False, handletextpad=0.2, columnspacing=0.9)
+    fig.tight_layout()
+    return fig_bytes(fig)

@@ -154,6 +154,22 @@ class Report(Summaries, Upscaling, SharpenSweep):
             self._file(f"maps/{base}_flip.png", lambda g=get_maps: png(magma(g()["flip_ldr"])), key, parallel=True)
             self._file(f"maps/{base}.exr", lambda g=get_maps: exr_bytes(g()), key, parallel=True)
 
+    def overview(self, views: dict) -> None:
+        """plots/overview.png, the report's first figure: the first static view's PSNR per scene of
+        each thesis column, ours ± reference uncertainty beside the thesis's (plots.overview)."""
+        from study.reporting.thesis import THESIS_STATIC_PSNR
+        first = next(iter(views.values()), None) if views else None
+        columns = {c: self.roles[c] for c in THESIS_COLUMNS if c in self.roles}
+        if not first or not any(l in r.per_frame for r in first for l in columns.values()):
+            return
+        thesis = {s: dict(zip(THESIS_COLUMNS, v)) for s, v in THESIS_STATIC_PSNR.items()}
+        inputs = {"figures": [[r.scene, {l: [r.per_frame[l][r.frames[-1]].get("psnr"),
+                                             r.uncertainty.get(l, {}).get(r.frames[-1], {}).get("psnr")]
+                                         for l in columns.values() if l in r.per_frame}] for r in first],
+                  "columns": columns, "view": next(iter(views))}
+        self._file("plots/overview.png", lambda: plots.overview(first, columns, thesis,
+                                                                f"Static test, {next(iter(views))}"), inputs)
+
     # -- ghosting ----------------------------------------------------------------------------
     def ghosting(self, res, agree: dict | None, stem: str = "ghosting") -> None:
         labels = list(res.per_frame)
@@ -357,6 +373,7 @@ def write_study(out: Path, res, configs, summary: dict, start: float) -> None:
         report.sparse_cost([s], stem="sparse_sweep_" + s.scene,
                            title=f"Sparse supersampling: mu against cost and quality ({s.scene}, {s.test})")
     report.headline(views)
+    report.overview(views)
     report.reproduction(views, res.ghosts)
     variants = sharpen_variants(configs)
     report.sharpen_test(views, variants)

@@ -107,6 +107,8 @@ def collect(out_dir: Path) -> dict:
             data["resolution"][scene] = list(im.size)
         data["scenes"][scene] = sd
 
+    if have("plots/overview.png"):
+        data["overview"] = "plots/overview.png"
     if have("tables/findings.json"):
         from study.reporting import findings_text
         data["findings"] = findings_text.summary(json.loads((out_dir / "tables/findings.json").read_text()))
