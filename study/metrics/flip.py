@@ -15,6 +15,18 @@ luminance, the median at least FLT_EPSILON as 1.7 does), ceil(c_stop - c_start) 
 Filters accumulate in the C++'s tap order with separate multiply and add, and host-side constants
 (filter weights, exposures) follow its float32 arithmetic. The mean is taken in float64 (the C++ sums
 the map in float32, one pixel after another, which at 1600x900 is itself off by ~1e-6).
+
+Input (checked up front, `check_pair`): LDR takes sRGB display images, float in [0, 1] or uint8
+(read as value / 255, as flip-evaluator reads an 8-bit PNG); HDR takes linear float images, >= 0.
+NaN and Inf are refused, as are an 8-bit image judged against a float one and images of different
+shapes, each with the image and the problem named.
+
+References
+----------
+P. Andersson, J. Nilsson, T. Akenine-Moller, M. Oskarsson, K. Astrom, M. D. Fairchild, "FLIP: A
+Difference Evaluator for Alternating Images", Proc. ACM Comput. Graph. Interact. Tech. 3(2), 2020.
+P. Andersson, J. Nilsson, P. Shirley, T. Akenine-Moller, "Visualizing Errors in Rendered High
+Dynamic Range Images", Eurographics 2021 Short Papers.
 """
 from __future__ import annotations
 
@@ -23,6 +35,7 @@ import math
 
 import numpy as np
 
+from study.metrics import checks
 from study.metrics import filters as jf
 from backend import dr
 
@@ -56,10 +69,29 @@ def _f32_of(x: float) -> f32:
 
 
 def default_ppd() -> f32:
+    """flip-evaluator's default pixels per degree: 0.7 m from a 0.7 m wide, 3840 pixel display.
+
+    Returns
+    -------
+    numpy.float32
+        About 67.02, computed in float32 as the C++ does.
+    """
     return f32(0.7) * (f32(3840.0) / f32(0.7)) * (PI / f32(180.0))
 
 
 def spatial_radius(ppd: f32) -> int:
+    """Radius of the colour pipeline's CSF filters (setSpatialFilters).
+
+    Parameters
+    ----------
+    ppd : numpy.float32
+        Pixels per degree of visual angle.
+
+    Returns
+    -------
+    int
+        10 at the default ppd (a 21-tap filter).
+    """
     pi_sq = PI * PI
     b = max(B1 + B2)
     return int(math.ceil(f32(3.0) * _f32_of(math.sqrt(b / (f32(2.0) * pi_sq))) * ppd))
@@ -74,7 +106,19 @@ def _gauss(x2: f32, a: f32, b: f32, sqrt_amp: bool) -> f32:
 
 
 def spatial_filters(ppd: f32):
-    """(gY, gCx, gCz1, gCz2) as float32 tuples, normalised like setSpatialFilters."""
+    """The colour pipeline's 1-D CSF filters, normalised as setSpatialFilters does.
+
+    Parameters
+    ----------
+    ppd : numpy.float32
+        Pixels per degree of visual angle.
+
+    Returns
+    -------
+    tuple of tuple of float
+        (gY, gCx, gCz1, gCz2), float32 values: Y and Cx one Gaussian each, Cz a sum of two applied
+        as two separable Gaussians of square-rooted amplitude (Andersson et al. 2020, sec. 4.1).
+    """
     r = spatial_radius(ppd)
     dx = f32(1.0) / ppd
     gy, gcx, gz1, gz2 = [], [], [], []
@@ -99,7 +143,19 @@ def spatial_filters(ppd: f32):
 
 
 def feature_filters(ppd: f32):
-    """(g, dg, ddg) as float32 tuples, normalised like setFeatureFilter."""
+    """The feature pipeline's Gaussian and its first and second derivatives, as setFeatureFilter.
+
+    Parameters
+    ----------
+    ppd : numpy.float32
+        Pixels per degree of visual angle.
+
+    Returns
+    -------
+    tuple of tuple of float
+        (g, dg, ddg), float32 values: g sums to 1, dg and ddg have positive and negative parts
+        summing to 1 and -1 each (Andersson et al. 2020, sec. 4.2).
+    """
     sd = f32(0.5) * GW * ppd
     r = int(math.ceil(f32(3.0) * sd))
     g, dg, ddg = [], [], []
@@ -148,6 +204,13 @@ def _lab_hunt_host(rgb):
 
 
 def max_distance() -> f32:
+    """FLIP's largest colour distance (green against blue, HyAB in Hunt-adjusted CIELab, ^0.7).
+
+    Returns
+    -------
+    numpy.float32
+        c_max of Andersson et al. 2020, eq. 4, in float32 as the C++ computes it.
+    """
     g = _lab_hunt_host((f32(0), f32(1), f32(0)))
     b = _lab_hunt_host((f32(0), f32(0), f32(1)))
     hy = abs(g[0] - b[0]) + _f32_of(math.sqrt((g[1] - b[1]) * (g[1] - b[1]) + (g[2] - b[2]) * (g[2] - b[2])))
@@ -212,7 +275,25 @@ _CONSTS: dict[float, _Consts] = {}
 
 
 def consts(ppd: f32 | None = None) -> _Consts:
-    ppd = default_ppd() if ppd is None else f32(ppd)
+    """FLIP's filters and constants for a viewing condition, made once per ppd and kept.
+
+    Parameters
+    ----------
+    ppd : float, optional
+        Pixels per degree of visual angle (`default_ppd` when omitted).
+
+    Returns
+    -------
+    _Consts
+        With ``ppd``, ``spatial`` (`spatial_filters`), ``feature`` (`feature_filters`), ``cmax``
+        (`max_distance`) and ``pccmax``.
+
+    Raises
+    ------
+    ValueError
+        If `ppd` is not a finite number > 0.
+    """
+    ppd = default_ppd() if ppd is None else f32(checks.positive("FLIP", "ppd", ppd))
     if float(ppd) not in _CONSTS:
         _CONSTS[float(ppd)] = _Consts(ppd)
     return _CONSTS[float(ppd)]
@@ -308,14 +389,100 @@ def _planes(lay: jf.Layout, img: np.ndarray):
     return [lay.upload(img[..., k], "float32") for k in range(3)]
 
 
-def _check(ref: np.ndarray, x: np.ndarray) -> None:
-    if ref.shape != x.shape or ref.ndim != 3 or ref.shape[2] != 3:
-        raise ValueError(f"FLIP needs two H x W x 3 images of one shape, got {ref.shape} and {x.shape}")
+MODES = ("LDR", "HDR")
+LDR_EXPECTED = "sRGB display images, float in [0, 1] or uint8"
+HDR_EXPECTED = "linear float images with values >= 0"
+
+
+def check_pair(ref, x, mode: str) -> tuple[np.ndarray, np.ndarray]:
+    """A pair FLIP can judge in `mode`, as arrays (uint8 LDR images as float32 value / 255).
+
+    Parameters
+    ----------
+    ref, x : array_like
+        Reference and test image, H x W x 3 of one shape. LDR: sRGB display images, float in
+        [0, 1] or uint8; HDR: linear float images, >= 0.
+    mode : {'LDR', 'HDR'}
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        (ref, x): the inputs themselves where they are float arrays already.
+
+    Raises
+    ------
+    ValueError
+        If `mode` is neither; if the shapes differ or are not H x W x 3; if one image is 8-bit
+        and the other float; if an image holds NaN or Inf; LDR: if an image is integer but not
+        uint8, or float outside [0, 1]; HDR: if an image is not float, or holds a negative value.
+        The message names the image and the values found.
+    """
+    if mode not in MODES:
+        raise ValueError(f"FLIP mode must be 'LDR' (display images) or 'HDR' (linear), not {mode!r}")
+    metric = f"{mode}-FLIP"
+    names = ("reference", "test image")
+    ref, x = (checks.as_array(metric, n, a) for n, a in zip(names, (ref, x)))
+    checks.rgb(metric, ref, x)
+    out = []
+    if mode == "LDR":
+        checks.same_kind(metric, ref, x, LDR_EXPECTED)
+        for n, a in zip(names, (ref, x)):
+            if a.dtype == np.uint8:
+                out.append(a.astype(f32) / f32(255.0))
+                continue
+            if a.dtype.kind != "f":
+                raise ValueError(f"{metric}: the {n} is {a.dtype}; it expects {LDR_EXPECTED}")
+            lo, hi = checks.finite_span(metric, n, a)
+            if lo < 0 or hi > 1:
+                raise ValueError(f"{metric}: the {n}'s values span [{lo:.6g}, {hi:.6g}]; it expects {LDR_EXPECTED} "
+                                 f"(linear HDR images: mode 'HDR')")
+            out.append(a)
+    else:
+        for n, a in zip(names, (ref, x)):
+            if a.dtype.kind != "f":
+                raise ValueError(f"{metric}: the {n} is {a.dtype}; it expects {HDR_EXPECTED}")
+            lo, _ = checks.finite_span(metric, n, a)
+            if lo < 0:
+                raise ValueError(f"{metric}: the {n} holds negative values (down to {lo:.6g}); it expects "
+                                 f"{HDR_EXPECTED}")
+            out.append(a)
+    return out[0], out[1]
 
 
 def exposures(ref_lin: np.ndarray) -> tuple[f32, f32, int]:
-    """(c_start, c_stop, count) as flip-evaluator 1.7 derives them from the reference."""
-    r = np.asarray(ref_lin, f32)
+    """HDR-FLIP's exposure range, as flip-evaluator 1.7 derives it from the reference.
+
+    Parameters
+    ----------
+    ref_lin : numpy.ndarray
+        The linear reference, H x W x 3, float, >= 0.
+
+    Returns
+    -------
+    c_start : numpy.float32
+        log2 of the exposure at which ACES maps the brightest luminance to 0.85.
+    c_stop : numpy.float32
+        The same for the median luminance (at least FLT_EPSILON).
+    count : int
+        ceil(c_stop - c_start) exposures, at least 2.
+
+    Raises
+    ------
+    ValueError
+        If the reference is not float, holds NaN, Inf or negative values, or is black.
+
+    References
+    ----------
+    Andersson et al. 2021, "Visualizing Errors in Rendered High Dynamic Range Images", sec. 3.
+    """
+    r = checks.as_array("HDR-FLIP", "reference", ref_lin)
+    if r.dtype.kind != "f":
+        raise ValueError(f"HDR-FLIP: the reference is {r.dtype}; it expects {HDR_EXPECTED}")
+    if r.ndim != 3 or r.shape[-1] != 3:
+        raise ValueError(f"HDR-FLIP needs an H x W x 3 reference, got shape {r.shape}")
+    if checks.finite_span("HDR-FLIP", "reference", r)[0] < 0:
+        raise ValueError(f"HDR-FLIP: the reference holds negative values; it expects {HDR_EXPECTED}")
+    r = np.asarray(r, f32)
     lum = (f32(0.2126) * r[..., 0] + f32(0.7152) * r[..., 1]) + f32(0.0722) * r[..., 2]
     lum = lum.ravel()
     ymax = lum.max()
@@ -340,14 +507,45 @@ def exposures(ref_lin: np.ndarray) -> tuple[f32, f32, int]:
 
 def flip(ref: np.ndarray, x: np.ndarray, mode: str, ppd: float | None = None,
          memo: dict | None = None, xmemo: dict | None = None) -> tuple[float, np.ndarray]:
-    """(mean, per-pixel map (H, W) float32) of FLIP 'LDR' (sRGB display images in [0, 1]) or 'HDR'
-    (linear, non-negative) -- the contract of flip_evaluator.evaluate(ref, x, mode).
+    """LDR-FLIP or HDR-FLIP of a test image against a reference, as flip-evaluator 1.7 computes it.
 
-    `memo`: a dict kept by a caller that judges several images against this one reference (and
-    only this one): the reference's half of the work (exposures, filtered planes) is kept in it.
-    `xmemo`: the same for `x` judged against several references: its half at each exposure is
-    kept (LDR: one; HDR: one per exposure value, shared where two references' exposures agree)."""
-    _check(ref, x)
+    Parameters
+    ----------
+    ref, x : numpy.ndarray
+        Reference and test image, H x W x 3 of one shape. 'LDR': sRGB display images, float in
+        [0, 1] or uint8 (read as value / 255); 'HDR': linear float images, >= 0.
+    mode : {'LDR', 'HDR'}
+        'HDR' judges ceil(c_stop - c_start) tone-mapped exposures (`exposures`) and keeps the
+        per-pixel maximum.
+    ppd : float, optional
+        Pixels per degree of visual angle (`default_ppd`, about 67.02, when omitted).
+    memo : dict, optional
+        Kept by a caller that judges several images against this one reference (and only this
+        one): the reference's half of the work (exposures, filtered planes) is kept there.
+    xmemo : dict, optional
+        The same for `x` judged against several references: its half at each exposure is kept
+        (LDR: one; HDR: one per exposure value, shared where two references' exposures agree).
+
+    Returns
+    -------
+    mean : float
+        The mean of the map (in float64).
+    map : numpy.ndarray
+        (H, W) float32, the per-pixel FLIP error in [0, 1] (0 = no perceived difference).
+
+    Raises
+    ------
+    ValueError
+        If the pair is not one FLIP can judge in `mode` (`check_pair`), `ppd` is not a finite
+        number > 0, or (HDR) the reference is black.
+
+    References
+    ----------
+    Andersson et al. 2020, "FLIP: A Difference Evaluator for Alternating Images" (LDR);
+    Andersson et al. 2021, "Visualizing Errors in Rendered High Dynamic Range Images" (HDR);
+    flip-evaluator 1.7 (NVlabs/flip) for every constant and default.
+    """
+    ref, x = check_pair(ref, x, mode)
     c = consts(ppd)
     h, w = ref.shape[:2]
     lay = jf.Layout(h, w)
@@ -367,7 +565,7 @@ def flip(ref: np.ndarray, x: np.ndarray, mode: str, ppd: float | None = None,
         def linear(img):
             return [dr.clip(_srgb_to_linear(p, _pow_type()), 0.0, 1.0) for p in _planes(lay, img)]
         err = pair("ldr", lambda: linear(ref), "ldr", lambda: linear(x))
-    elif mode == "HDR":
+    else:
         if ("exposures", "HDR") not in memo:
             memo[("exposures", "HDR")] = exposures(ref)
         start, stop, n = memo[("exposures", "HDR")]
@@ -380,8 +578,6 @@ def flip(ref: np.ndarray, x: np.ndarray, mode: str, ppd: float | None = None,
             ei = pair(i, lambda: _aces(_planes(lay, ref), m), m, lambda: _aces(x_planes(), m))
             err = ei if err is None else dr.maximum(err, ei)
             dr.eval(err)
-    else:
-        raise ValueError(f"FLIP mode must be 'LDR' or 'HDR', not {mode!r}")
     emap = lay.download(err)
     return float(emap.mean(dtype=np.float64)), np.ascontiguousarray(emap, np.float32)
 

@@ -14,6 +14,16 @@ C1 = (0.01 L)^2, C2 = (0.03 L)^2, C3 = C2/2 and exponents 1 (so Wang et al.'s eq
 uint8; ssimval = mean of the map over all H*W*3 voxels, borders included. Along the channel axis
 (3 samples, radius 5, replicate) the Gaussian reduces to a fixed 3x3 mixing of the channels, which
 commutes with the spatial filter.
+
+Input: two uint8 8-bit display images (data range 255, the study's), or two float images with an
+explicit `data_range` (scikit-image's rule: a float image carries no range of its own, and SSIM's
+constants C1, C2 scale with it, so a [0, 1] pair judged as 0..255 would score ~1 whatever it
+holds). Anything else is refused up front (`data_range_of`, study.metrics.checks).
+
+References
+----------
+Z. Wang, A. C. Bovik, H. R. Sheikh, E. P. Simoncelli, "Image quality assessment: from error
+visibility to structural similarity", IEEE Transactions on Image Processing 13(4), 2004.
 """
 from __future__ import annotations
 
@@ -23,25 +33,104 @@ import numpy as np
 
 from backend import dr
 
+from study.metrics import checks
 from study.metrics import filters as jf
 
 SIGMA = 1.5
 K1, K2 = 0.01, 0.03
 DATA_RANGE = 255.0
 SKIMAGE_TRUNCATE = 3.5
+EXPECTED = "uint8 8-bit display images (data range 255), or float images with an explicit data_range"
+
+
+def data_range_of(ref: np.ndarray, x: np.ndarray, data_range: float | None = None) -> float:
+    """The data range L of SSIM's constants C1 = (K1 L)^2, C2 = (K2 L)^2 for a pair, checked.
+
+    Parameters
+    ----------
+    ref, x : numpy.ndarray
+        The reference and the test image, of one shape (checked by the caller).
+    data_range : float, optional
+        The span of values the images can take (e.g. 1.0 for display images in [0, 1]). Optional
+        for uint8 images (255), required for float ones.
+
+    Returns
+    -------
+    float
+        `data_range`, or 255 for a uint8 pair without one.
+
+    Raises
+    ------
+    ValueError
+        If the images are neither both uint8 nor both float; if they are float and `data_range`
+        is missing, or their values span more than it; if they hold NaN or Inf; if `data_range`
+        is not a finite number > 0.
+    """
+    kinds = {a.dtype.kind if a.dtype != np.uint8 else "u8" for a in (ref, x)}
+    if len(kinds) > 1 or not kinds <= {"u8", "f"}:
+        what = ref.dtype if ref.dtype == x.dtype else f"{ref.dtype} and {x.dtype}"
+        raise ValueError(f"SSIM expects {EXPECTED}, both of one kind; got {what}")
+    if ref.dtype == np.uint8:
+        return DATA_RANGE if data_range is None else checks.positive("SSIM", "data_range", data_range)
+    if data_range is None:
+        raise ValueError(f"SSIM of {ref.dtype} images needs an explicit data_range (1.0 for display "
+                         f"images in [0, 1]): it expects {EXPECTED}")
+    L = checks.positive("SSIM", "data_range", data_range)
+    lo_r, hi_r = checks.finite_span("SSIM", "reference", ref)
+    lo_x, hi_x = checks.finite_span("SSIM", "test image", x)
+    lo, hi = min(lo_r, lo_x), max(hi_r, hi_x)
+    if hi - lo > L:
+        raise ValueError(f"SSIM: the images' values span [{lo:.6g}, {hi:.6g}], more than data_range {L:g}")
+    return L
 
 
 def skimage_radius(sigma: float = SIGMA) -> int:
+    """Radius of scikit-image's Gaussian window, int(truncate * sigma + 0.5), truncate 3.5.
+
+    Parameters
+    ----------
+    sigma : float
+        The Gaussian's standard deviation in pixels.
+
+    Returns
+    -------
+    int
+        5 for sigma 1.5 (an 11-tap window).
+    """
     return int(SKIMAGE_TRUNCATE * sigma + 0.5)
 
 
 def matlab_radius(sigma: float = SIGMA) -> int:
+    """Radius of MATLAB ssim's Gaussian window, ceil(3 sigma) (FilterSize 2 ceil(3 sigma) + 1).
+
+    Parameters
+    ----------
+    sigma : float
+        The Gaussian's standard deviation in pixels.
+
+    Returns
+    -------
+    int
+        5 for sigma 1.5 (an 11-tap window).
+    """
     return int(math.ceil(3 * sigma))
 
 
 def channel_mixing(weights: np.ndarray, channels: int = 3) -> np.ndarray:
-    """M[c, c'] = weight the 1-D filter along the channel axis ('replicate' padding) gives channel
-    c' in output channel c."""
+    """The 1-D filter along the channel axis, 'replicate' padding, as a channels x channels matrix.
+
+    Parameters
+    ----------
+    weights : numpy.ndarray
+        The filter's taps (odd length, centre in the middle).
+    channels : int
+        Number of channels.
+
+    Returns
+    -------
+    numpy.ndarray
+        M with M[c, c'] the weight channel c' gets in output channel c.
+    """
     r = len(weights) // 2
     m = np.zeros((channels, channels))
     for c in range(channels):
@@ -50,12 +139,41 @@ def channel_mixing(weights: np.ndarray, channels: int = 3) -> np.ndarray:
     return m
 
 
-def _check(ref8: np.ndarray, x8: np.ndarray, radius: int) -> None:
-    if ref8.shape != x8.shape or ref8.ndim != 3 or ref8.shape[2] != 3:
-        raise ValueError(f"SSIM needs two H x W x 3 images of one shape, got {ref8.shape} and {x8.shape}")
-    h, w = ref8.shape[:2]
-    if min(h, w) < 2 * radius + 1:
+def check_pair(ref, x, data_range: float | None = None, radius: int | None = None):
+    """A pair SSIM can judge, as arrays, with its data range.
+
+    Parameters
+    ----------
+    ref, x : array_like
+        Reference and test image: H x W x 3 of one shape, uint8 8-bit display images or float
+        images with `data_range`.
+    data_range : float, optional
+        The span of values the images can take: 255 for uint8 when omitted, required for float.
+    radius : int, optional
+        The window's radius r: the images must be at least 2 r + 1 pixels on each side. None:
+        any size of at least 1 x 1 (the volume form).
+
+    Returns
+    -------
+    ref, x : numpy.ndarray
+        The inputs as arrays (no copy).
+    data_range : float
+        As `data_range_of`.
+
+    Raises
+    ------
+    ValueError
+        If the shapes differ (both named) or are not H x W x 3, the images are smaller than the
+        window, or `data_range_of` refuses them.
+    """
+    ref, x = checks.as_array("SSIM", "reference", ref), checks.as_array("SSIM", "test image", x)
+    checks.rgb("SSIM", ref, x)
+    h, w = ref.shape[:2]
+    if radius is not None and min(h, w) < 2 * radius + 1:
         raise ValueError(f"SSIM needs images of at least {2 * radius + 1}x{2 * radius + 1} pixels, got {w}x{h}")
+    if min(h, w) < 1:
+        raise ValueError(f"SSIM needs images of at least 1x1 pixel, got {w}x{h}")
+    return ref, x, data_range_of(ref, x, data_range)
 
 
 def _ssim_formula(ux, uy, uxx, uyy, uxy, c1, c2):
@@ -172,15 +290,54 @@ def _ssim_core(lay: jf.Layout, planes: list, sigma: float, volume: bool, c1: flo
     return s, _mixed_ssim(vs if shared else vs[15:], mix, c1, c2)
 
 
-def ssim_both(ref8: np.ndarray, x8: np.ndarray, sigma: float = SIGMA, volume: bool = True):
-    """(per-channel mean SSIM, its map (H, W) float64, volume SSIM or None).
+def ssim_both(ref8: np.ndarray, x8: np.ndarray, sigma: float = SIGMA, volume: bool = True,
+              data_range: float | None = None):
+    """Per-channel SSIM (scikit-image's form), its map, and MATLAB's volume SSIM, in one pass.
 
     Both forms use the same 11-tap Gaussian (radius 5 for sigma 1.5 in both rules), so away from the
     borders their filtered statistics coincide: the Dr.Jit passes compute them once (with
     scikit-image's reflect borders) and the volume form's 5-pixel frame, where 'replicate' differs,
-    is recomputed directly (`_volume_frame`)."""
+    is recomputed directly.
+
+    Parameters
+    ----------
+    ref8, x8 : numpy.ndarray
+        Reference and test image, H x W x 3 of one shape, H and W at least 2 r + 1 (11 for sigma
+        1.5): uint8 8-bit display images, or float images with `data_range`.
+    sigma : float
+        The Gaussian window's standard deviation in pixels (1.5 in Wang et al. 2004).
+    volume : bool
+        Compute the volume form too.
+    data_range : float, optional
+        The span of values the images can take: 255 for uint8 when omitted, required for float.
+
+    Returns
+    -------
+    mean : float
+        The per-channel mean SSIM: the mean over channels of each channel map's mean, the
+        r-pixel border cropped (scikit-image 0.26.0 structural_similarity, gaussian_weights=True,
+        use_sample_covariance=False, K1 0.01, K2 0.03).
+    map : numpy.ndarray
+        (H, W) float64, the channel mean of the per-channel SSIM maps (1 = identical).
+    volume : float or None
+        MATLAB's ssim of the H x W x 3 array as one volume (the thesis's SSIM), or None.
+
+    Raises
+    ------
+    ValueError
+        If the images differ in shape, are not H x W x 3, are smaller than the window, are not
+        both uint8 or both float, are float without `data_range` or span more than it, or hold
+        NaN/Inf (`data_range_of`).
+
+    References
+    ----------
+    Wang et al. 2004 (eq. 13, the Gaussian-windowed form of their section III-B); MATLAB R2018
+    ``ssim`` for the volume form, as used in Oliveros 2018, Improved Sampling for Temporal
+    Anti-Aliasing, Lund University.
+    """
+    checks.positive("SSIM", "sigma", sigma)
     rc = skimage_radius(sigma)
-    _check(ref8, x8, rc)
+    ref8, x8, L = check_pair(ref8, x8, data_range, rc)
     h, w = ref8.shape[:2]
     rv = matlab_radius(sigma)
     shared = volume and rv == rc
@@ -190,7 +347,7 @@ def ssim_both(ref8: np.ndarray, x8: np.ndarray, sigma: float = SIGMA, volume: bo
     for c in range(3):
         planes += [lay.upload(ref8[..., c], prec), lay.upload(x8[..., c], prec)]
 
-    c1, c2 = (K1 * DATA_RANGE) ** 2, (K2 * DATA_RANGE) ** 2
+    c1, c2 = (K1 * L) ** 2, (K2 * L) ** 2
     s, v = _ssim_core(lay, planes, sigma, volume, c1, c2)
     smap = lay.download(s * (1.0 / 3.0))
     mean = float(smap[rc:h - rc, rc:w - rc].mean(dtype=np.float64))
@@ -203,23 +360,81 @@ def ssim_both(ref8: np.ndarray, x8: np.ndarray, sigma: float = SIGMA, volume: bo
     return mean, smap, float(vmap.mean(dtype=np.float64) / 3.0)
 
 
-def ssim(ref8: np.ndarray, x8: np.ndarray, sigma: float = SIGMA) -> tuple[float, np.ndarray]:
-    mean, smap, _ = ssim_both(ref8, x8, sigma, volume=False)
+def ssim(ref8: np.ndarray, x8: np.ndarray, sigma: float = SIGMA,
+         data_range: float | None = None) -> tuple[float, np.ndarray]:
+    """Per-channel mean SSIM and its map, as scikit-image 0.26.0 computes them.
+
+    Parameters
+    ----------
+    ref8, x8 : numpy.ndarray
+        Reference and test image, H x W x 3 of one shape, at least 11 x 11 for sigma 1.5: uint8
+        8-bit display images, or float images with `data_range`.
+    sigma : float
+        The Gaussian window's standard deviation in pixels.
+    data_range : float, optional
+        The span of values the images can take: 255 for uint8 when omitted, required for float
+        (e.g. 1.0 for display images in [0, 1]).
+
+    Returns
+    -------
+    mean : float
+        Mean SSIM, the r-pixel border cropped.
+    map : numpy.ndarray
+        (H, W) float64, the channel mean of the per-channel maps.
+
+    Raises
+    ------
+    ValueError
+        As `ssim_both`: float input without `data_range` among them.
+
+    References
+    ----------
+    Wang et al. 2004; scikit-image 0.26.0 ``skimage.metrics.structural_similarity``
+    (gaussian_weights=True, sigma=1.5, use_sample_covariance=False, K1=0.01, K2=0.03).
+    """
+    mean, smap, _ = ssim_both(ref8, x8, sigma, volume=False, data_range=data_range)
     return mean, smap
 
 
-def ssim_volume(ref8: np.ndarray, x8: np.ndarray, sigma: float = SIGMA) -> float:
-    """MATLAB's SSIM of two H x W x 3 arrays as volumes; any H, W >= 1 (as MATLAB allows)."""
-    if ref8.shape != x8.shape or ref8.ndim != 3 or ref8.shape[2] != 3 or min(ref8.shape[:2]) < 1:
-        raise ValueError(f"SSIM needs two H x W x 3 images of one shape, got {ref8.shape} and {x8.shape}")
+def ssim_volume(ref8: np.ndarray, x8: np.ndarray, sigma: float = SIGMA, data_range: float | None = None) -> float:
+    """MATLAB's SSIM of two H x W x 3 arrays as volumes (the thesis's form); any H, W >= 1.
+
+    Parameters
+    ----------
+    ref8, x8 : numpy.ndarray
+        Reference and test image, H x W x 3 of one shape: uint8 8-bit display images, or float
+        images with `data_range`.
+    sigma : float
+        The 3-D Gaussian's standard deviation (on all three axes).
+    data_range : float, optional
+        The span of values the images can take: 255 for uint8 when omitted, required for float.
+
+    Returns
+    -------
+    float
+        The mean of the volume SSIM map over all H * W * 3 voxels, borders included.
+
+    Raises
+    ------
+    ValueError
+        As `ssim_both`, except that any size of at least 1 x 1 is accepted.
+
+    References
+    ----------
+    Wang et al. 2004, eq. 13 with C3 = C2 / 2; MATLAB R2018 ``ssim`` on an H x W x 3 array
+    (11 x 11 x 11 Gaussian window, 'replicate' padding), as used in Oliveros 2018, Improved
+    Sampling for Temporal Anti-Aliasing, Lund University.
+    """
+    checks.positive("SSIM", "sigma", sigma)
+    ref8, x8, L = check_pair(ref8, x8, data_range)
     if min(ref8.shape[:2]) >= 2 * skimage_radius(sigma) + 1:
-        return ssim_both(ref8, x8, sigma, volume=True)[2]
+        return ssim_both(ref8, x8, sigma, volume=True, data_range=L)[2]
     # Smaller than the window: every pixel is a border pixel, computed directly.
     lay = jf.Layout(*ref8.shape[:2])
     planes = []
     for c in range(3):
         planes += [lay.upload(ref8[..., c], "float64"), lay.upload(x8[..., c], "float64")]
-    _, _, vals = _volume_frame(lay, planes, sigma, (K1 * DATA_RANGE) ** 2, (K2 * DATA_RANGE) ** 2)
+    _, _, vals = _volume_frame(lay, planes, sigma, (K1 * L) ** 2, (K2 * L) ** 2)
     return float(vals.mean(dtype=np.float64) / 3.0)
 
 
@@ -302,7 +517,7 @@ def _combine(mr: list, mx: list, xy: list, sigma: float, volume: bool, c1: float
 
 def _image(lay: jf.Layout, img8: np.ndarray, sigma: float, volume: bool, memo: dict | None) -> tuple:
     """(planes, moments, frame moments or None) of one image, kept in `memo` when given."""
-    key = ("ssim", sigma, volume, img8.shape)
+    key = ("ssim", sigma, volume, img8.shape, img8.dtype.str)
     if memo is not None and key in memo:
         return memo[key]
     planes = [lay.upload(img8[..., c], "float64") for c in range(3)]
@@ -317,20 +532,53 @@ def _image(lay: jf.Layout, img8: np.ndarray, sigma: float, volume: bool, memo: d
 
 
 def ssim_against(refs8: list, x8: np.ndarray, memos: list | None = None, sigma: float = SIGMA,
-                 volume: bool = True) -> list:
-    """ssim_both(ref8, x8) for each ref8 of `refs8`, the technique's moments computed once;
-    `memos`: one dict per reference (None: none kept), where its moments are kept for the next
-    image judged against it. Same values as ssim_both (tested)."""
+                 volume: bool = True, data_range: float | None = None) -> list:
+    """`ssim_both` of one image against several references, the image's own moments computed once.
+
+    Parameters
+    ----------
+    refs8 : list of numpy.ndarray
+        The references (e.g. a reference and its two halves), each as `ssim_both`'s `ref8`.
+    x8 : numpy.ndarray
+        The test image, of the references' shape and kind.
+    memos : list of dict, optional
+        One dict per reference, kept by the caller: the reference's moments are kept there for
+        the next image judged against it. None: none kept.
+    sigma : float
+        The Gaussian window's standard deviation in pixels.
+    volume : bool
+        Compute the volume form too.
+    data_range : float, optional
+        As `ssim_both`, for every pair.
+
+    Returns
+    -------
+    list of tuple
+        One (mean, map, volume or None) per reference, the same values as `ssim_both` bit for bit.
+
+    Raises
+    ------
+    ValueError
+        As `ssim_both`, for any of the pairs (the message names the shapes or the problem).
+
+    References
+    ----------
+    Wang et al. 2004; see `ssim_both`.
+    """
+    checks.positive("SSIM", "sigma", sigma)
     rc = skimage_radius(sigma)
+    Ls = []
     for r8 in refs8:
-        _check(r8, x8, rc)
+        _, x8, L = check_pair(r8, x8, data_range, rc)
+        Ls.append(L)
     h, w = x8.shape[:2]
     volume = volume and matlab_radius(sigma) == rc     # the shared-pass case ssim_both takes
     lay = jf.Layout(h, w)
-    c1, c2 = (K1 * DATA_RANGE) ** 2, (K2 * DATA_RANGE) ** 2
     xp, xm, xf = _image(lay, x8, sigma, volume, None)
     out = []
-    for r8, memo in zip(refs8, memos or [None] * len(refs8)):
+    for r8, memo, L in zip(refs8, memos or [None] * len(refs8), Ls):
+        c1, c2 = (K1 * L) ** 2, (K2 * L) ** 2
+        r8 = np.asarray(r8)
         rp, rm, rf = _image(lay, r8, sigma, volume, memo)
         pairs = [p for c in range(3) for p in (rp[c], xp[c])]
         s, v = _pair_core(lay, pairs, rm, xm, sigma, volume, c1, c2)
