@@ -1,4 +1,4 @@
-"""A researcher's own study: the README's study file and own technique work from the command line,
+"""A researcher's own study: the study file and own technique of docs/extending.md work from the command line,
 study files are validated like scene files, and tables find the thesis's techniques by what they are."""
 import csv
 import json
@@ -11,7 +11,7 @@ from click.testing import CliRunner
 from study.commands.cli import main
 from study_fixtures import write_scenes
 
-README = (Path(__file__).parent.parent / "README.md").read_text()
+README = (Path(__file__).parent.parent / "docs" / "extending.md").read_text()     # the examples a user copies
 
 
 def _block(header: str, lang: str) -> str:
