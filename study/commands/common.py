@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import sys
 import tempfile
+from datetime import datetime, timezone
 from pathlib import Path
 
 import click
@@ -162,6 +163,23 @@ def _load_scenes(names):
         _fail(str(exc))
 
 
+def _checkout_commit() -> str | None:
+    """The commit of this checkout (+modified if tracked files differ from it), for a study's summary
+    (`taa-study results` names it); None outside a git checkout."""
+    import subprocess
+    root = Path(__file__).resolve().parents[2]
+    try:
+        head = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True,
+                              timeout=10)
+        if head.returncode != 0:
+            return None
+        dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
+                               capture_output=True, text=True, timeout=30)
+    except (OSError, subprocess.TimeoutExpired):
+        return None
+    return head.stdout.strip() + ("+modified" if dirty.returncode == 0 and dirty.stdout.strip() else "")
+
+
 def run_study(profile, names, configs, out_dir, no_agreement, executor, sweep=True, own_columns=True):
     """The study end to end: plan and execute its tasks (study.engine.runner), then write its tables, figures
     and report (study.reporting.report.write_study). `profile`: a Profile (study file). Returns the folder."""
@@ -184,8 +202,11 @@ def run_study(profile, names, configs, out_dir, no_agreement, executor, sweep=Tr
         res = study.run(names, configs, agreement=not no_agreement, sweep=sweep_cfg, sharpen=sharpen)
     except TaskError as exc:
         _fail(str(exc))
+    from study.config.profile import thesis_roles
     summary = {**res.stats, "profile": study.profile.name, "scenes": names,
-               "techniques": [c.label for c in configs], "executor": executor.describe()}
+               "techniques": [c.label for c in configs], "roles": thesis_roles(configs),
+               "executor": executor.describe(), "commit": _checkout_commit(),
+               "date": datetime.now(timezone.utc).isoformat(timespec="seconds")}
     write_study(out, res, configs, summary, start)
     from study.engine.store import Store
     Store(study.cache.root).save_hashes()        # the files the report checked

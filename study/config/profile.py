@@ -85,6 +85,16 @@ class Profile:
         return views
 
 
+def view_history(label: str) -> int:
+    """The history length a static view's label (Profile.static_views) names: its inverse, for a
+    finished study's files, which keep the labels. ValueError for any other label."""
+    import re
+    m = re.fullmatch(r"thesis \((\d+) frames, cold\)|converged \((\d+) frames\)", label)
+    if m is None:
+        raise ValueError(f"{label!r} is not a static view's label (e.g. 'thesis (16 frames, cold)')")
+    return int(m.group(1) or m.group(2))
+
+
 def get_profile(name_or_file) -> Profile:
     """A built-in profile by name or a study file by path (study.config.studyfile)."""
     from study.config import studyfile

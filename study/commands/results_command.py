@@ -1,0 +1,30 @@
+"""The `results` command: docs/results.md and the README's results block from a finished study
+(study.reporting.results_doc)."""
+from __future__ import annotations
+
+import click
+
+from study.commands.common import _fail, main
+
+
+@main.command()
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="out/quick", show_default=True,
+              help="The study's output folder (what `taa-study run` wrote).")
+@click.option("--doc", "doc", type=click.Path(dir_okay=False), default="docs/results.md", show_default=True,
+              help="The results document to write.")
+@click.option("--readme", type=click.Path(dir_okay=False), default=None,
+              help="The README whose lines between <!-- results:begin --> and <!-- results:end --> get the "
+                   "short results table (default: README.md).")
+@click.option("--no-readme", is_flag=True, help="Write the results document only.")
+def results(out_dir, doc, readme, no_readme):
+    """Write the results document from a finished study's figures and findings (nothing typed in),
+    and its short table into the README between its results markers."""
+    from study.reporting.results_doc import ResultsError, write
+    if readme is not None and no_readme:
+        _fail("give --readme PATH or --no-readme, not both")
+    try:
+        got = write(out_dir, doc, None if no_readme else (readme or "README.md"))
+    except ResultsError as exc:
+        _fail(str(exc))
+    click.echo(f"wrote {got['doc']}" + (f" and the results block of {got['readme']}" if got["readme"] else "")
+               + f" from {out_dir}")
