@@ -27,7 +27,13 @@ Departures from FSR 2 (checked against FSR 2.2.1's shaders, commit 1680d1e), eac
    and capped at `max_accumulation` (as FSR 2.1 stored it), so a static pixel converges like the
    study's TAAs;
  - RCAS runs on the tone-mapped output (2.2.1: on exposed linear values, with its noise term):
-   RCAS's limits assume [0, 1];
+   RCAS's limits assume [0, 1]; its limiters take the centre pixel in (min(ring, centre),
+   max(ring, centre)), as FSR 1.0's RCAS does: FSR 2's copy uses the ring alone, which at a local
+   peak overshoots 1 (0.99 on 0.5: 2.46), past what the inverse tone map can undo;
+ - the upsample's footprint: the 4x4 around the sample left of and above the output centre
+   without its corners, deringed into the 2x2 nearest samples' range (FSR 2: the 3x3 around
+   floor(centre), deringed into its min/max); where the centre falls on a sample the 12 taps miss
+   one of the 3x3's diagonals (tests/test_fsr2_oracle.py holds both forms);
  - locks: lifetime in frames and a trust luma (2.2.1: lifetime drained by the upsample weight and a
    1/32-resolution shading-change luma);
  - the luma instability test (fsr2_passes.luma_instability), and no reactive, transparency or
