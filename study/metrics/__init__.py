@@ -1,8 +1,15 @@
 """Image metrics on arrays alone, importable without the study engine (as scikit-image's are):
 
-  suite     MSE, RMSD, PSNR, SNR, relMSE, every metric of one image (all_metrics), temporal
-            instability, and a whole sequence judged (judge_sequence)
-  ssim      SSIM as scikit-image 0.26.0 computes it and MATLAB's volume SSIM, in Dr.Jit
-  flip      LDR/HDR-FLIP as flip-evaluator 1.7 computes it, in Dr.Jit
-  filters   the separable Dr.Jit filters both use
+  suite        MSE, RMSD, PSNR, SNR, relMSE, every metric of one image (all_metrics), temporal
+               instability, and a whole run judged (judge_run)
+  ssim         SSIM as scikit-image 0.26.0 computes it and MATLAB's volume SSIM, in Dr.Jit
+               (Wang et al. 2004)
+  flip         LDR/HDR-FLIP as flip-evaluator 1.7 computes it, in Dr.Jit (Andersson et al. 2020, 2021)
+  video        ColorVideoVDP, the perceptual video metric (Mantiuk et al. 2024)
+  uncertainty  each figure's uncertainty from the reference's two halves (the jackknife)
+  filters      the separable Dr.Jit filters SSIM and FLIP use
+  checks       what a metric can judge, refused up front with what it expected: 8-bit figures and
+               SSIM's default range take uint8 images, float SSIM needs an explicit data_range,
+               FLIP LDR display images in [0, 1] (or uint8), HDR-FLIP linear images >= 0; NaN/Inf
+               and mismatched shapes or kinds are named
 """

@@ -31,11 +31,33 @@ BORDERS = ("clamp", "reflect")
 
 
 def jit():
-    """The Dr.Jit array namespace of the active backend (CUDA variant -> dr.cuda, else dr.llvm)."""
+    """The Dr.Jit array namespace of the active backend.
+
+    Returns
+    -------
+    module
+        ``dr.cuda`` for a CUDA variant, else ``dr.llvm``.
+    """
     return dr.cuda if backend.VARIANT.startswith("cuda") else dr.llvm
 
 
 def types(precision: str):
+    """The flat array type and the packet array type of a precision.
+
+    Parameters
+    ----------
+    precision : {'float32', 'float64'}
+
+    Returns
+    -------
+    tuple
+        (Float, ArrayXf) or (Float64, ArrayXf64) of the active backend.
+
+    Raises
+    ------
+    ValueError
+        If `precision` is neither.
+    """
     J = jit()
     if precision == "float32":
         return J.Float, J.ArrayXf
@@ -45,9 +67,28 @@ def types(precision: str):
 
 
 def border_index(a: int, n: int, mode: str) -> int:
-    """Source index of position a on an axis of n samples: 'clamp' repeats the edge sample (FLIP,
-    MATLAB 'replicate'); 'reflect' mirrors about the edge, edge sample included (scipy.ndimage
-    'reflect', d c b a | a b c d)."""
+    """Source index of position `a` on an axis of `n` samples under a border rule.
+
+    Parameters
+    ----------
+    a : int
+        A position, possibly outside [0, n).
+    n : int
+        Samples on the axis.
+    mode : {'clamp', 'reflect'}
+        'clamp' repeats the edge sample (FLIP, MATLAB 'replicate'); 'reflect' mirrors about the
+        edge, edge sample included (scipy.ndimage 'reflect', d c b a | a b c d).
+
+    Returns
+    -------
+    int
+        The index in [0, n) whose sample position `a` reads.
+
+    Raises
+    ------
+    ValueError
+        If `mode` is neither.
+    """
     if mode == "clamp":
         return min(max(a, 0), n - 1)
     if mode == "reflect":
@@ -58,6 +99,13 @@ def border_index(a: int, n: int, mode: str) -> int:
 
 @dataclass(frozen=True)
 class Layout:
+    """An (H, W) plane as one flat Dr.Jit array, row-major, rows padded to `wg` = 8 ceil(W / 8).
+
+    Attributes
+    ----------
+    h, w : int
+        The plane's height and width.
+    """
     h: int
     w: int
 
@@ -78,9 +126,27 @@ class Layout:
         return self.h * self.wg
 
     def upload(self, plane: np.ndarray, precision: str):
-        """(H, W) numpy plane -> flat Dr.Jit array in this layout (pad columns repeat the edge),
-        written once into a 64-byte aligned buffer: Dr.Jit marks arrays made from unaligned numpy
-        memory and then splits every packet gather into 8 scalar gathers."""
+        """A numpy plane as a flat Dr.Jit array in this layout (pad columns repeat the edge).
+
+        Written once into a 64-byte aligned buffer: Dr.Jit marks arrays made from unaligned numpy
+        memory and then splits every packet gather into 8 scalar gathers.
+
+        Parameters
+        ----------
+        plane : numpy.ndarray
+            (H, W), real values (converted to `precision`).
+        precision : {'float32', 'float64'}
+
+        Returns
+        -------
+        Float or Float64
+            H * wg values.
+
+        Raises
+        ------
+        ValueError
+            If the plane's shape is not (H, W).
+        """
         F, _ = types(precision)
         dt = np.dtype(np.float32 if precision == "float32" else np.float64)
         if plane.shape != (self.h, self.w):
@@ -94,10 +160,29 @@ class Layout:
         return F(out.ravel())
 
     def download(self, flat) -> np.ndarray:
+        """A flat array of this layout as an (H, W) numpy plane, the pad columns dropped.
+
+        Parameters
+        ----------
+        flat : Float or Float64
+            H * wg values.
+
+        Returns
+        -------
+        numpy.ndarray
+            (H, W), a view of the array's values.
+        """
         a = flat.numpy().reshape(self.h, self.wg)
         return a[:, :self.w]
 
     def lane_coords(self):
+        """Each lane's index, row and group (8 pixels of a row per lane).
+
+        Returns
+        -------
+        tuple of UInt32
+            (lane, row, group within the row), H * groups lanes.
+        """
         J = jit()
         g = dr.arange(J.UInt32, self.lanes)
         return g, g // self.groups, g % self.groups
@@ -122,9 +207,26 @@ def _packets(F, AX, plane, index, lanes):
 
 def hpass(lay: Layout, planes: Sequence, quantities: Callable[[list], list], filters: Sequence[Filter],
           precision: str) -> list:
-    """Horizontal pass. `quantities(values)` maps the tap values of all planes at one position to
-    the list of quantities the filters read (e.g. x, y, x*x, y*y, x*y for SSIM). Returns one flat
-    array per filter, in the layout."""
+    """Horizontal pass: each filter along the rows, on quantities of the planes' values.
+
+    Parameters
+    ----------
+    lay : Layout
+        The planes' layout.
+    planes : sequence of Float or Float64
+        Flat arrays in `lay` (Dr.Jit's own, aligned: `Layout.upload`).
+    quantities : callable
+        Maps the tap values of all planes at one position to the list of quantities the filters
+        read (e.g. x, y, x*x, y*y, x*y for SSIM).
+    filters : sequence of Filter
+        Each reads quantity ``source`` with its weights and border rule.
+    precision : {'float32', 'float64'}
+
+    Returns
+    -------
+    list
+        One flat array per filter, in `lay`.
+    """
     F, AX = types(precision)
     J = jit()
     R = max(f.radius for f in filters)
@@ -189,10 +291,31 @@ def hpass(lay: Layout, planes: Sequence, quantities: Callable[[list], list], fil
 
 
 def vpass(lay: Layout, planes: Sequence, filters: Sequence[Filter], precision: str) -> list:
-    """Vertical pass: one flat array per filter (filter.source indexes `planes`, outputs of hpass).
+    """Vertical pass: each filter along the columns of one of `planes`.
 
     Each filter runs as its own kernel: fused, several filters' packets compete for registers and
-    the pass ran ~2x slower per plane (measured at 1600x900)."""
+    the pass ran ~2x slower per plane (measured at 1600x900).
+
+    Parameters
+    ----------
+    lay : Layout
+        The planes' layout.
+    planes : sequence of Float or Float64
+        Flat arrays in `lay` (typically `hpass`'s outputs).
+    filters : sequence of Filter
+        Each reads plane ``source``.
+    precision : {'float32', 'float64'}
+
+    Returns
+    -------
+    list
+        One flat array per filter, in `lay`.
+
+    Raises
+    ------
+    ValueError
+        If a 'reflect' filter's radius is not below the image's height.
+    """
     F, AX = types(precision)
     J = jit()
     G, h = lay.groups, lay.h
@@ -224,8 +347,20 @@ def vpass(lay: Layout, planes: Sequence, filters: Sequence[Filter], precision: s
 
 
 def gaussian_weights(sigma: float, radius: int) -> np.ndarray:
-    """exp(-x^2 / (2 sigma^2)) on -radius..radius, normalised to sum 1 (float64), as scipy.ndimage
-    and MATLAB's fspecial/imgaussfilt build their kernels."""
+    """A sampled, normalised Gaussian, as scipy.ndimage and MATLAB's fspecial/imgaussfilt build it.
+
+    Parameters
+    ----------
+    sigma : float
+        Standard deviation in samples.
+    radius : int
+        Taps on each side of the centre.
+
+    Returns
+    -------
+    numpy.ndarray
+        exp(-x^2 / (2 sigma^2)) on x = -radius..radius, float64, summing to 1.
+    """
     x = np.arange(-radius, radius + 1, dtype=np.float64)
     k = np.exp(-0.5 * x * x / (sigma * sigma))
     return k / k.sum()

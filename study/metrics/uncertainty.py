@@ -18,6 +18,11 @@ A figure that is a mean over frames (each frame against its own, independent ref
 the mean of the corrected values, and its uncertainty is the per-frame ones added in quadrature
 over n (`pooled`); one frame's is a single draw of |f(A) - f(B)|, about 2 sd on average but with
 a spread of its own, which is why a study refines to a tolerance with a margin (study.engine.precision).
+
+References
+----------
+B. Efron, C. Stein, "The Jackknife Estimate of Variance", The Annals of Statistics 9(3), 1981;
+M. H. Quenouille, "Notes on Bias in Estimation", Biometrika 43(3/4), 1956 (the bias correction).
 """
 from __future__ import annotations
 
@@ -35,9 +40,25 @@ def _finite(*xs) -> bool:
 
 
 def jackknife(full: dict, a: dict, b: dict) -> tuple[dict, dict]:
-    """(corrected figures, their uncertainty) of one frame, from the figures judged against the
-    reference and against its halves A and B. A figure that is None stays None; one that is
-    infinite against any of the three (an exact match) is kept as judged, with no uncertainty."""
+    """One frame's figures with the reference's noise bias removed, and the uncertainty left.
+
+    Parameters
+    ----------
+    full : dict
+        metric -> figure judged against the reference (`study.metrics.suite.all_metrics`).
+    a, b : dict
+        The same judged against the reference's independent halves A and B.
+
+    Returns
+    -------
+    corrected : dict
+        metric -> 2 f(ref) - (f(A) + f(B)) / 2; RMSD, PSNR and SNR derived from the corrected
+        MSE (clamped at 0). A figure that is None stays None; one that is infinite against any of
+        the three (an exact match) is kept as judged.
+    uncertainty : dict
+        metric -> |f(A) - f(B)|, about two standard deviations of the random part (0 for an
+        exact match, None where the figure is None).
+    """
     out, u = {}, {}
     for k, f in full.items():
         fa, fb = a.get(k), b.get(k)
@@ -69,15 +90,41 @@ def jackknife(full: dict, a: dict, b: dict) -> tuple[dict, dict]:
 
 
 def pooled(us: list) -> float | None:
-    """The uncertainty of a mean over frames of figures with independent uncertainties us."""
+    """The uncertainty of a mean over frames of figures with independent uncertainties.
+
+    Parameters
+    ----------
+    us : list of float
+        Each frame's uncertainty.
+
+    Returns
+    -------
+    float or None
+        sqrt(sum u^2) / n; None for no frames or where any frame's is None.
+    """
     if not us or any(x is None for x in us):
         return None
     return math.sqrt(sum(x * x for x in us)) / len(us)
 
 
 def tolerance(metric: str, value: float | None, tolerances: dict) -> float | None:
-    """The absolute tolerance on a figure: `relative` (MSE, RMSD, temporal RMS) and `relmse` figures
-    a fraction of the value, the others an absolute one (dB for PSNR and SNR)."""
+    """The absolute tolerance on a figure.
+
+    Parameters
+    ----------
+    metric : str
+        The figure's metric (a key of `TOLERANCE_OF`).
+    value : float or None
+        The figure.
+    tolerances : dict
+        Tolerance key -> tolerance (study.config.defaults): 'relative' (MSE, RMSD, temporal RMS)
+        and 'relmse' as a fraction of the value, the others absolute (dB for PSNR and SNR).
+
+    Returns
+    -------
+    float or None
+        None for a metric without a tolerance, or a relative one on a missing or infinite value.
+    """
     key = TOLERANCE_OF.get(metric)
     if key is None or key not in tolerances:
         return None
@@ -87,13 +134,45 @@ def tolerance(metric: str, value: float | None, tolerances: dict) -> float | Non
 
 
 def excess(metric: str, value: float | None, u: float | None, tolerances: dict) -> float | None:
-    """The tolerance a figure's uncertainty u exceeds, or None when it is within it (or has none)."""
+    """The tolerance a figure's uncertainty exceeds.
+
+    Parameters
+    ----------
+    metric : str
+        The figure's metric.
+    value : float or None
+        The figure.
+    u : float or None
+        Its uncertainty (`jackknife`, `pooled`).
+    tolerances : dict
+        As `tolerance`.
+
+    Returns
+    -------
+    float or None
+        The tolerance, or None when `u` is within it (or either is None).
+    """
     tol = tolerance(metric, value, tolerances)
     return tol if u is not None and tol is not None and u > tol else None
 
 
 def over_tolerance(figures: dict, us: dict, tolerances: dict) -> dict:
-    """metric -> u / tolerance for every figure whose uncertainty exceeds its tolerance."""
+    """The figures whose uncertainty exceeds their tolerance, and by how much.
+
+    Parameters
+    ----------
+    figures : dict
+        metric -> figure.
+    us : dict
+        metric -> its uncertainty.
+    tolerances : dict
+        As `tolerance`.
+
+    Returns
+    -------
+    dict
+        metric -> u / tolerance (> 1; inf for a tolerance of 0), only for those over it.
+    """
     out = {}
     for k, u in us.items():
         tol = excess(k, figures.get(k), u, tolerances)
@@ -103,8 +182,22 @@ def over_tolerance(figures: dict, us: dict, tolerances: dict) -> dict:
 
 
 def decimals(metric: str, u: float | None, most: int) -> int:
-    """Decimals a figure with uncertainty u supports: to the first significant digit of u, at most
-    `most` (the table's layout), at least 0."""
+    """The decimals a figure with uncertainty `u` supports: to u's first significant digit.
+
+    Parameters
+    ----------
+    metric : str
+        The figure's metric (every metric follows the same rule).
+    u : float or None
+        The uncertainty.
+    most : int
+        The table layout's decimals, the most returned.
+
+    Returns
+    -------
+    int
+        floor(-log10 u) within [0, most]; `most` where u is None, 0, negative or not finite.
+    """
     if u is None or not math.isfinite(u) or u <= 0:
         return most
     return max(0, min(most, math.floor(-math.log10(u))))

@@ -9,6 +9,14 @@ luminance calibration that no scene has; the tone-mapped image is what a player 
 
 The base metric needs no downloaded weights (only cvvdp's ML variants fetch models): importing it
 sets HF_HUB_OFFLINE so that nothing can be fetched at run time.
+
+Input: uint8 frames only (F x H x W x 3, or one H x W x 3 image), reference and technique of one
+shape; anything else is refused with the shape or dtype named.
+
+References
+----------
+R. K. Mantiuk, P. Hanji, M. Ashraf, Y. Asano, A. Chapiro, "ColorVideoVDP: A visual difference
+predictor for image, video and display distortions", ACM Transactions on Graphics 43(4), 2024.
 """
 from __future__ import annotations
 
@@ -23,7 +31,7 @@ VERSION = "0.5.7"          # pinned; part of every JOD figure's key (study.engin
 def _as_frames(a, what: str) -> np.ndarray:
     a = np.asarray(a)
     if a.dtype != np.uint8:
-        raise ValueError(f"{what}: 8-bit display frames expected, got {a.dtype}")
+        raise ValueError(f"{what}: uint8 8-bit display frames expected (F x H x W x 3), got {a.dtype}")
     if a.ndim == 3:
         a = a[None]
     if a.ndim != 4 or a.shape[-1] != 3:
@@ -32,7 +40,20 @@ def _as_frames(a, what: str) -> np.ndarray:
 
 
 class ColorVideoVDP:
-    """One metric object per display model (cvvdp keeps its pyramids per image size)."""
+    """ColorVideoVDP on one display model (cvvdp keeps its pyramids per image size).
+
+    Parameters
+    ----------
+    display : str
+        A cvvdp display model name (e.g. 'standard_fhd').
+    threads : int, optional
+        torch's CPU threads.
+
+    Raises
+    ------
+    ValueError
+        If cvvdp does not know the display model.
+    """
 
     def __init__(self, display: str = "standard_fhd", threads: int | None = None):
         os.environ["HF_HUB_OFFLINE"] = "1"
@@ -48,10 +69,37 @@ class ColorVideoVDP:
             raise ValueError(f"cvvdp display model {display!r}: {exc}") from None
 
     def jod(self, test8, ref8, fps: float, heatmap: bool = False) -> tuple[float, np.ndarray | None]:
-        """JOD of `test8` against `ref8` (F x H x W x 3 uint8, or one H x W x 3 image), played at
-        `fps` (a single frame is judged as an image). With `heatmap`, also the per-pixel difference
-        map of the last frame (cvvdp's 'raw' map: 0 where nothing is visible,
-        rising with the predicted visibility; 1 - JOD/10 per pixel)."""
+        """JOD of a technique's frames against the reference's.
+
+        Parameters
+        ----------
+        test8, ref8 : numpy.ndarray
+            F x H x W x 3 uint8 frames (or one H x W x 3 image), of one shape.
+        fps : float
+            The frame rate they are played at (> 0 for a sequence; a single frame is judged as
+            an image).
+        heatmap : bool
+            Also return the per-pixel difference map of the last frame.
+
+        Returns
+        -------
+        jod : float
+            10 = no visible difference, each unit down about 75 % of observers preferring the
+            reference.
+        map : numpy.ndarray or None
+            (H, W) float32, cvvdp's 'raw' map (0 where nothing is visible, rising with the
+            predicted visibility; 1 - JOD/10 per pixel), or None without `heatmap`.
+
+        Raises
+        ------
+        ValueError
+            If the frames are not uint8, not F x H x W x 3, differ in shape, or a sequence has no
+            frame rate > 0.
+
+        References
+        ----------
+        Mantiuk et al. 2024, "ColorVideoVDP".
+        """
         t, r = _as_frames(test8, "technique"), _as_frames(ref8, "reference")
         if t.shape != r.shape:
             raise ValueError(f"technique frames {t.shape} and reference frames {r.shape} differ in shape")
@@ -71,5 +119,18 @@ class ColorVideoVDP:
 
 @lru_cache(maxsize=4)
 def metric(display: str, threads: int | None = None) -> ColorVideoVDP:
-    """A process's metric for a display (its construction and torch's import are paid once)."""
+    """A process's metric for a display (its construction and torch's import are paid once).
+
+    Parameters
+    ----------
+    display : str
+        A cvvdp display model name.
+    threads : int, optional
+        torch's CPU threads.
+
+    Returns
+    -------
+    ColorVideoVDP
+        Kept per (display, threads).
+    """
     return ColorVideoVDP(display, threads)
