@@ -1,10 +1,11 @@
-"""The display transform (spec section 8), applied once and identically to every image.
+"""The display transform (docs/method.md), applied once and identically to every image.
 
 Global Reinhard (2002): Rec.709 luminance L_w, log-average key over the *reference*
 L_avg = exp(mean(log(delta + L_w))), scaled L = a / L_avg * L_w, compressed
 L_d = L (1 + L / L_white^2) / (1 + L) with L_white in scaled units, RGB scaled by L_d / L_w,
 then sRGB-encoded and quantised to 8 bits. The key and white point come from the reference so
-the technique being judged cannot move them. (Seed 003's L_white mixes scaled and unscaled units.)
+the technique being judged cannot move them. (Marín 2015's real-time global Reinhard writes L_white in
+unscaled units beside a scaled L; here both are scaled.)
 """
 from __future__ import annotations
 

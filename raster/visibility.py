@@ -2,7 +2,7 @@
 single-sample framebuffer.
 
 pyrender always draws colour into a 4x multisampled renderbuffer and returns it 8-bit and
-gamma-encoded (spec section 12), which would anti-alias the very input TAA must start from. So we
+gamma-encoded (pow 1/2.2, clamped), which would anti-alias the very input TAA must start from. So we
 rasterise only integer IDs into a single-sample RG32UI target (there is no multisample buffer at
 all) and rebuild every float buffer per pixel from the triangle that the pixel's one sample hit:
 a visibility buffer. The sample sits at the centre of the jittered projection's pixel.

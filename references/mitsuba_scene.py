@@ -1,5 +1,5 @@
 """Mitsuba objects matched to our camera: a perspective sensor with a box-filtered float32 film,
-and an integrator that calls the shared shading function (spec section 4)."""
+and an integrator that calls the shared shading function (shading/__init__.py)."""
 from __future__ import annotations
 
 import numpy as np

@@ -1,8 +1,8 @@
-"""Converged references: every pixel's display-domain standard error below a bound (issue 9).
+"""Converged references: every pixel's display-domain standard error below a bound.
 
 A pixel's value is the plain mean of all its samples; its standard error (SE) comes from the
 spread of independent estimates, in linear HDR and, through the Jacobian of the display
-transform at the mean (spec section 8, channels' covariance kept), in display units: the
+transform at the mean (display/__init__.py; channels' covariance kept), in display units: the
 transform of the current mean, re-derived after every round, so that the bound holds in the
 display domain of the converged image, the one the study judges in. The bound is on the worst
 channel, 0.5 LSB of 8 bits by default.

@@ -1,4 +1,5 @@
-"""Built-in scenes, rebuilt procedurally after the thesis's test scenes (spec section 10).
+"""Built-in scenes, rebuilt procedurally after the thesis's test scenes (Oliveros 2018,
+Improved Sampling for Temporal Anti-Aliasing, §5.2).
 
 The first few are defined here; the rest of the thesis scenes and the hard cases live in
 scenes/library/ and are registered in BUILTIN below."""

@@ -1,6 +1,6 @@
 """Reference cost and per-pixel noise: pipe, atrium, hairball_rotating_lit at 320x180 and pipe at
-1600x900 (issue 9), or with --textured the three textured example scenes of
-scenes/examples/textured/ at 320x180 (issue 22), rendered into a temporary cache.
+1600x900, or with --textured the three textured example scenes of
+scenes/examples/textured/ at 320x180, rendered into a temporary cache.
 
 Prints seconds, mean/max spp, the 99.9th percentile and max display-domain standard error in LSB
 (8-bit), the count of pixels over the bound and of those whose SE is the unseen-feature floor. A reference that records no display-domain error
@@ -49,7 +49,7 @@ def delta_display_se(img: np.ndarray, se: np.ndarray) -> np.ndarray:
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--skip-full", action="store_true", help="skip pipe at 1600x900")
-    ap.add_argument("--textured", action="store_true", help="the textured example scenes (issue 22)")
+    ap.add_argument("--textured", action="store_true", help="the textured example scenes")
     ap.add_argument("--only", nargs="*", help="cases as SCENE@WxH")
     args = ap.parse_args()
     cases = TEXTURED if args.textured else CASES

@@ -1,4 +1,4 @@
-"""Where the precision rule's drift comes from (issue 20): references of one frame at several
+"""Where the precision rule's drift comes from: references of one frame at several
 bounds and seeds against a fine one (0.25 LSB), printing, over the pixels each bound refines, the
 linear mean's error in units of its own SE (the adaptive stopping's bias), the display values'
 mean error (plus the display transform's curvature), and the jackknifed MSE of a 3x3-blurred

@@ -1,4 +1,4 @@
-"""Adaptive reference against a uniform high-spp Mitsuba reference of the same frame (issue 9):
+"""Adaptive reference against a uniform high-spp Mitsuba reference of the same frame:
 where does the adaptive one miss sub-pixel structure?
 
 Per scene prints seconds and mean spp of the adaptive reference, the display PSNR between the two,

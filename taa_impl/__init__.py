@@ -6,7 +6,7 @@ Every technique: `needs` (buffers read), `params` (frozen, hashable), `sampling`
 accumulation buffer also has `process_samples(frames)`.
 
 Registry: 'noaa', 'accumulation', 'fxaa', 'taa_baseline', 'taa_improved', and named presets of the
-baseline TAA's extensions (spec section 7), each the baseline with some TAAParams switches on:
+baseline TAA's extensions (taa_impl/baseline.py), each the baseline with some TAAParams switches on:
   taa_ycocg          box='ycocg'
   taa_variance       variance_clip_gamma=1.0
   taa_catmull_rom    history_filter='catmull_rom'
@@ -14,8 +14,8 @@ baseline TAA's extensions (spec section 7), each the baseline with some TAAParam
   taa_reject         reject_depth=0.05, reject_id=True
   taa_ycocg_variance box='ycocg', variance_clip_gamma=1.0, history_filter='catmull_rom',
                      tonemap_blend=True
-Also 'taa_sparse' (sparse supersampling of invalid pixels, seed 002; driven with supersampled= and
-mask=, see taa_impl.sparse) and Ferrando's TAA (seed 004; needs cameras=, see taa_impl.ferrando):
+Also 'taa_sparse' (sparse supersampling of invalid pixels, Li, Chen, Zhang 2021; driven with supersampled= and
+mask=, see taa_impl.sparse) and Ferrando's TAA (Ferrando 2018; needs cameras=, see taa_impl.ferrando):
   taa_ferrando_text          history_weight=0.95, clamp='current'
   taa_ferrando_code          history_weight=0.6, clamp='history'
   taa_ferrando_code_noclamp  history_weight=0.3, clamp='none'
@@ -67,7 +67,7 @@ PRESETS: dict[str, Preset] = {p.name: p for p in (
     Preset("taa_reject", BaselineTAA, reject_depth=0.05, reject_id=True),
     Preset("taa_ycocg_variance", BaselineTAA, box="ycocg", variance_clip_gamma=1.0,
            history_filter="catmull_rom", tonemap_blend=True),
-    # Ferrando 2018 (seed 004), taa_impl/ferrando.py: the text's reading and the two shaders
+    # Ferrando 2018, taa_impl/ferrando.py: the text's reading and the two shaders
     Preset("taa_ferrando_text", FerrandoTAA, history_weight=0.95, clamp="current"),
     Preset("taa_ferrando_code", FerrandoTAA, history_weight=0.6, clamp="history"),
     Preset("taa_ferrando_code_noclamp", FerrandoTAA, history_weight=0.3, clamp="none"),
@@ -82,7 +82,7 @@ TECHNIQUES: dict[str, Callable[..., Technique]] = {
     SMAA.name: SMAA,
     BaselineTAA.name: BaselineTAA,
     ImprovedTAA.name: ImprovedTAA,
-    SparseTAA.name: SparseTAA,     # 'taa_sparse' (seed 002), taa_impl/sparse.py
+    SparseTAA.name: SparseTAA,     # 'taa_sparse' (Li, Chen, Zhang 2021), taa_impl/sparse.py
     SpatialUpscale.name: SpatialUpscale,   # 'upscale_spatial': No AA at render_scale, Lanczos-2
     TAAU.name: TAAU,                       # 'taau', taa_impl/taau.py
     FSR2.name: FSR2,                       # 'fsr2', an FSR 2-class upscaler, taa_impl/fsr2.py

@@ -40,13 +40,13 @@ from backend import array, dr, mi
 
 from . import sanitize
 
-# Feedback presets (k_min, k_max), spec §5 step 5.
+# Feedback presets (k_min, k_max) of the luminance feedback (Oliveros 2018, §3.6.3).
 FEEDBACK_PRESETS: dict[str, tuple[float, float]] = {
     "thesis": (0.925, 0.979),  # the thesis author's implementation
     "inside": (0.88, 0.97),    # INSIDE (Pedersen 2016)
 }
 
-# Sharpen kernels, spec §5 step 6. Both are [[0,-w,0],[-w,1+4w,-w],[0,-w,0]]; we apply them as
+# Sharpen kernels (Xu 2016; Oliveros 2018, §3.6.5 and §4.3.5). Both are [[0,-w,0],[-w,1+4w,-w],[0,-w,0]]; we apply them as
 # out = c + w * sum(c - n) over the 4 cross neighbours n, which is the same sum but keeps a constant
 # image exactly constant (5c - 4c is not exact in float32, c + 0 is).
 SHARPEN_KERNELS: dict[str, tuple[tuple[float, ...], ...]] = {
@@ -86,7 +86,7 @@ OUTPUT_SPACES = ("linear", "display")
 
 @dataclass(frozen=True)
 class TAAParams:
-    """Parameters of the baseline TAA (spec §5). Defaults: thesis feedback preset, Xu's sharpen."""
+    """Parameters of the baseline TAA (Oliveros 2018, §3.6). Defaults: thesis feedback preset, Xu's sharpen."""
     k_min: float = FEEDBACK_PRESETS["thesis"][0]
     k_max: float = FEEDBACK_PRESETS["thesis"][1]
     feedback_luma: tuple[float, float, float] = (0.25, 0.5, 0.25)  # INSIDE's (YCoCg Y) weights
@@ -95,7 +95,7 @@ class TAAParams:
     clip_tol: float = 1e-4           # plus this times the box's magnitude (kernels.clip_toward_centre);
     #                                  0 = INSIDE's clip, whose decision float32 rounding makes
     sharpen: str | float = "xu"               # a SHARPEN_KERNELS name or the cross kernel's w
-    # Extensions beyond the seeds (spec section 7); every default is "off" = the baseline above.
+    # Extensions beyond the thesis's TAA (published techniques, named below); every default is "off" = the baseline above.
     box: str = "minmax"                       # 'minmax': RGB box; 'ycocg': box and clip in YCoCg (Karis 2014)
     variance_clip_gamma: float | None = None  # Salvi 2016: box = mu -/+ gamma*sigma over the 3x3
     variance_intersect: bool = False          # True: intersect the variance box with the min/max box

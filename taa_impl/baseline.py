@@ -1,4 +1,4 @@
-"""Baseline TAA: Uncharted 4 (Xu 2016) / INSIDE (Pedersen 2016) as the thesis used it (spec §5).
+"""Baseline TAA: Uncharted 4 (Xu 2016) / INSIDE (Pedersen 2016) as the thesis used it (Oliveros 2018, §3.6).
 
 Sharpening is applied to the displayed output only; the history keeps the unsharpened blend (Xu runs
 the sharpen as a separate pass after TAA, INSIDE's history is the plain blend). Sharpening the
@@ -17,11 +17,11 @@ Step 4's clip carries a tolerance relative to the box's magnitude (TAAParams.cli
 of INSIDE's eps, and ends in a clamp into the box: with eps alone float32 rounding decided the
 clip (kernels.clip_toward_centre says how; clip_tol=0 gives INSIDE's clip).
 
-The current colour c is the raster's jittered sample as is (the spec's "un-jittered sample": we do
-not resample it; jitter only moves where the sample was taken).
+The current colour c is the raster's jittered sample as is (the "un-jittered sample" of Xu 2016: we
+do not resample it; jitter only moves where the sample was taken).
 
-Extensions (spec section 7), each a TAAParams switch whose default is off (= the baseline above,
-bit for bit). They compose in this order, per pixel:
+Extensions (Karis 2014, Salvi 2016 and the others named below), each a TAAParams switch whose
+default is off (= the baseline above, bit for bit). They compose in this order, per pixel:
  1. velocity of the closest-depth 3x3 pixel (unchanged);
  2. box space: `box='ycocg'` converts the current colours to YCoCg (Karis 2014) and builds the box
     there; the history is converted, clipped in YCoCg and converted back to RGB (YCoCg is linear,
@@ -148,7 +148,7 @@ class TAATechnique(Technique):
 
 
 class BaselineTAA(TAATechnique):
-    """Spec section 5, plus the extension switches of TAAParams (module docstring). The debug terms
+    """The baseline of Oliveros 2018, §3.6, plus the extension switches of TAAParams (module docstring). The debug terms
     box_min / box_max / box_avg are in the box space (YCoCg when box='ycocg'; box_avg is mu with
     a variance box)."""
     name = "taa_baseline"

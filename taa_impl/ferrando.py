@@ -1,13 +1,13 @@
-"""Ferrando's simple TAA (Ferrando 2018, U-Tad master's thesis, ch. 5; seed 004), as variants of the
-baseline where the seed differs from it.
+"""Ferrando's simple TAA (Ferrando 2018, U-Tad master's thesis, ch. 5), as variants of the
+baseline where Ferrando's text differs from it.
 
 What the seed prints (its §5.1-5.6, GLSL 330 + C++):
 - one history buffer (the previous anti-aliased output, §5.1); Halton jitter of the MVP (§5.2);
 - motion vectors from the depth buffer and the current and previous view-projection matrices only
   (GPU Gems 3 ch. 27, §5.3): un-project the pixel with inverse(VP) at its depth, re-project with
   PrevVP, velocity = (current NDC - previous NDC) / 2. Camera motion only: moving objects get the
-  motion of the static world behind them (the spec's "depth-only reprojection is wrong for moving
-  objects" -- this variant exists to measure that);
+  motion of the static world behind them (a depth-only reprojection is wrong for moving objects --
+  this variant exists to measure that);
 - the blend is a plain lerp with a fixed weight, no luminance feedback and no dilation of the
   velocity (each pixel uses its own). The text (§5.4) says "a value of 5 %, as some commercial games
   use [Xu 2016]" (5 % of the new frame, i.e. history weight 0.95); the §5.4 shader blends
@@ -79,9 +79,9 @@ OFFSCREEN = ("reject", "edge")
 class FerrandoParams:
     history_weight: float = 0.95     # k of out = mix(c, h, k) (the text's "5 %" of the new frame)
     clamp: str = "current"           # one of CLAMPS (module docstring, mistake 1)
-    motion_source: str = "camera"    # 'camera': from depth + both cameras (the seed's); 'buffer'
+    motion_source: str = "camera"    # 'camera': from depth + both cameras (Ferrando's); 'buffer'
     offscreen: str = "reject"        # one of OFFSCREEN
-    sharpen: str | float = "none"    # a key of base.SHARPEN_KERNELS or a strength; the seed's optional one is 'xu'
+    sharpen: str | float = "none"    # a key of base.SHARPEN_KERNELS or a strength; Ferrando's optional one is 'xu'
 
     def __post_init__(self):
         k = float(self.history_weight)

@@ -1,4 +1,4 @@
-"""The thesis's improved TAA (Oliveros 2018, §4.3; spec §6).
+"""The thesis's improved TAA (Oliveros 2018, Improved Sampling for Temporal Anti-Aliasing, §4.3).
 
 The baseline's clip box is shrunk toward the current colour wherever a pixel does not look aliased.
 "Aliased" (aliasedValue in [0, 1]) combines: the fraction of 3x3 pixels of another model

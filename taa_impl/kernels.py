@@ -54,7 +54,7 @@ class Neighbourhood:
     avgx: object
 
     def averaged(self):
-        """INSIDE's box: the mean of the 3x3 and cross values (spec §5 step 3)."""
+        """INSIDE's box: the mean of the 3x3 and cross values (Pedersen 2016; Oliveros 2018, §3.6.4)."""
         return ((self.min3 + self.minx) * 0.5, (self.max3 + self.maxx) * 0.5,
                 (self.avg3 + self.avgx) * 0.5)
 
@@ -116,7 +116,7 @@ def closest_index(grid: Grid, depth):
 
 
 def closest_velocity(grid: Grid, depth, motion):
-    """Motion vector of the 3x3 pixel with the smallest depth (spec §5 step 1)."""
+    """Motion vector of the 3x3 pixel with the smallest depth (Karis 2014; Oliveros 2018, §3.6.2)."""
     return dr.gather(mi.Vector2f, motion, closest_index(grid, depth))
 
 
@@ -275,7 +275,7 @@ def _max3(a):
 
 
 def clip_toward_centre(hist, bmin, bmax, eps: float, tol: float = 0.0):
-    """INSIDE's clip_aabb (spec §5 step 4), made well conditioned in float32: pull `hist` toward
+    """INSIDE's clip_aabb (Pedersen 2016; Oliveros 2018, §3.6.4), made well conditioned in float32: pull `hist` toward
     the box centre p onto the box widened by a tolerance tau, then clamp it into the box itself.
 
         p = (bmax + bmin)/2,  half = (bmax - bmin)/2,  v = hist - p,
@@ -306,7 +306,7 @@ def clip_toward_centre(hist, bmin, bmax, eps: float, tol: float = 0.0):
 
 
 def feedback_weight(lum_c, lum_h, k_min: float, k_max: float, floor: float):
-    """INSIDE's luminance feedback (spec §5 step 5): k = mix(k_min, k_max, (1 - d)^2).
+    """INSIDE's luminance feedback (Pedersen 2016; Oliveros 2018, §3.6.3): k = mix(k_min, k_max, (1 - d)^2).
 
     d is saturated to [0, 1]: a no-op for non-negative colours (where d <= 1 already), it keeps k
     inside [k_min, k_max] should a negative colour ever arrive."""

@@ -1,4 +1,4 @@
-"""The two reference points of the study (spec section 7): No AA and the accumulation buffer.
+"""The two reference points of the study (Oliveros 2018, §3.7): No AA and the accumulation buffer.
 
 - No AA (`noaa`): the single sample at each pixel centre, returned as is (sampling 'centre').
 - Accumulation buffer / SSAA (`accumulation`, Haeberli & Akeley 1990): the mean of N jittered

@@ -1,5 +1,5 @@
-"""TAA with sparse supersampling of the pixels whose history cannot be reused (Li, Chen, Zhang 2021;
-seed 002; spec section 7).
+"""TAA with sparse supersampling of the pixels whose history cannot be reused (Li, Chen, Zhang 2021,
+Temporal anti-aliasing with sparse supersampling).
 
 The paper's pipeline (its §1.1): the TAA pass also runs a "reuse validity test" per pixel and writes
 a segmentation mask; pixels that fail are re-rendered with spatial supersampling (meshes, triangles
@@ -30,7 +30,7 @@ a usable history -- first frame, after a reset or a resolution change, reproject
 rejected by the reject_depth / reject_id switches -- are invalid too (the paper's reason (1),
 "visibility changed", at its most certain).
 
-Per frame: the baseline TAA runs everywhere unchanged (spec section 5 with all TAAParams switches,
+Per frame: the baseline TAA runs everywhere unchanged (taa_impl/baseline.py with all TAAParams switches,
 code mirrored from BaselineTAA._step); then out = supersampled where invalid, the TAA blend elsewhere;
 that composite is the new history (so a re-rendered pixel restarts its history from an N-sample
 estimate) and is sharpened for display exactly as the baseline's blend is.

@@ -1,4 +1,5 @@
-"""Plain-NumPy reference of the baseline TAA (spec §5) and the improved TAA (spec §6).
+"""Plain-NumPy reference of the baseline TAA (Xu 2016; Pedersen 2016; Oliveros 2018,
+§3.6) and the improved TAA (Oliveros 2018, Improved Sampling for Temporal Anti-Aliasing, §4.3).
 
 Written for clarity, not speed, and independently of taa_impl's Dr.Jit kernels: per-pixel loops
 for the velocity search and the bilinear fetch, the sharpen and Sobel kernels applied as the
@@ -8,7 +9,7 @@ the well-conditioned reference the float32 kernels are held to over whole sequen
 (tests/test_taa_robust.py). Constants are Python floats so they take the arrays' dtype.
 It expects finite inputs (the repair of non-finite pixels is tested separately).
 
-The extension switches of TAAParams (spec §7) are here too, each in its textbook form: YCoCg as a
+The extension switches of TAAParams (taa_impl/baseline.py) are here too, each in its textbook form: YCoCg as a
 matrix, the variance as the two-pass population variance, Catmull-Rom as the cubic's matrix form
 over explicit texel weights (the 5-tap variant as the 4x4 weights without the corners,
 renormalised), Karis's blend literally in c / (1 + luma) space followed by the inverse map, and
@@ -206,7 +207,7 @@ def mix(a, b, t):
 
 
 class OracleTAA:
-    """improved=False: spec §5; improved=True: spec §6. `params` is a taa_impl params dataclass.
+    """improved=False: the baseline (Oliveros 2018, §3.6); improved=True: the thesis's TAA (§4.3). `params` is a taa_impl params dataclass.
     dtype: the arithmetic's precision (the frame is cast to it; the history is kept in it)."""
 
     def __init__(self, params, improved: bool, dtype=np.float32):

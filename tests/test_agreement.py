@@ -1,4 +1,4 @@
-"""The raster and the reference agree (foundation issue), on small versions of built-in scenes
+"""The raster and the reference agree, on small versions of built-in scenes
 that between them have a moving object, a texture, shadows and an alpha cut-out."""
 import json
 

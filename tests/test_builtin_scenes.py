@@ -1,4 +1,4 @@
-"""The built-in scene library (issue 5): every scene resolves, says what it is, has the features it
+"""The built-in scene library: every scene resolves, says what it is, has the features it
 claims, stays within its geometry budget, and renders a small raster frame with finite colour.
 Cheap by design: the agreement of raster and reference per scene is `taa-study agree --all`."""
 import numpy as np

@@ -1,4 +1,4 @@
-"""CLI values are validated by click: exit 2 with a message, no traceback (issue 11's table)."""
+"""CLI values are validated by click: exit 2 with a message, no traceback."""
 import json
 
 import pytest

@@ -1,4 +1,4 @@
-"""Issue 13 item 3: whole glTF scenes. A multi-material GLB is written here with trimesh (nested
+"""Whole glTF scenes. A multi-material GLB is written here with trimesh (nested
 nodes, an sRGB base-colour texture, an alphaMode MASK cut-out, a camera), and a hand-assembled
 .gltf exercises the decoder paths trimesh never writes (TRS quaternions, a mirroring node, a
 triangle strip, interleaved and sparse accessors, normalised TEXCOORD_1, a nested camera)."""

@@ -1,4 +1,4 @@
-"""Complete cache keys (issue 11): in a temporary copy of the project, editing any source file a
+"""Complete cache keys: in a temporary copy of the project, editing any source file a
 task depends on changes that task's key, and each task's code closure holds the files it must."""
 import json
 import shutil

@@ -10,7 +10,7 @@ from display import DisplayTransform
 from study.metrics import flip as F
 from study.metrics import suite as metrics
 
-TOL = 1e-5   # the brief's bound on means and maps; measured margins are in the assertions' comments
+TOL = 1e-5   # the bound held on means and maps; measured margins are in the assertions' comments
 
 
 def _pairs8():

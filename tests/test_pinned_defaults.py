@@ -1,5 +1,5 @@
-"""Pins of the defaults the study's tables depend on (issue 10 item 6), each against a value
-computed independently of the code: the spec's numbers written as literals, and outputs worked out
+"""Pins of the defaults the study's tables depend on, each against a value
+computed independently of the code: the published numbers (the thesis's, INSIDE's, Reinhard's) written as literals, and outputs worked out
 by hand (the arithmetic is in the comments). A changed default fails here even when every other
 test still passes. (SSIM's sigma is pinned in the metrics tests.)"""
 from __future__ import annotations
@@ -18,7 +18,7 @@ from taa_impl.improved import ImprovedParams
 F = np.float32
 
 
-# --------------------------------------------------------------------- display (spec section 8)
+# --------------------------------------------------------------------- display (Reinhard 2002)
 def test_reinhard_with_default_arguments_by_hand():
     # Reference, 1x3 pixels: white (L = 1), green 0.5 (L = 0.7152 * 0.5 = 0.3576), black (L = 0).
     # delta = 1e-4: L_avg = exp((ln 1.0001 + ln 0.3577 + ln 0.0001) / 3) = 0.03294990..., kept to

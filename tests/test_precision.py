@@ -141,8 +141,8 @@ def test_figures_rule_matches_per_pixel_references_on_three_scenes(tmp_path):
     assert all(not p["over"] for p in tests)
     assert all(p["rounds"][0] == 8.0 and len(p["rounds"]) >= 2 for p in tests)    # probed, then checked finer
     # each test ends at the last bound it tried, every round finer than the one before; whether
-    # any ends coarser than 0.5 LSB depends on the references' noise at this size (with the nets
-    # of issue 22, none does: hairball_rotating_lit's ghosting SSIM was 0.00054 > 5e-4 at 1 LSB)
+    # any ends coarser than 0.5 LSB depends on the references' noise at this size (with the
+    # Owen-scrambled Sobol' nets, none does: hairball_rotating_lit's ghosting SSIM was 0.00054 > 5e-4 at 1 LSB)
     assert all(p["bound_lsb"] == p["rounds"][-1] and all(x > y for x, y in zip(p["rounds"], p["rounds"][1:]))
                for p in tests), new["precision"]
     checked = 0

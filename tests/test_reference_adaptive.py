@@ -1,4 +1,4 @@
-"""Adaptive references (issue 9): the reported per-pixel standard error is what two seeds show,
+"""Adaptive references: the reported per-pixel standard error is what two seeds show,
 and the adaptive mean agrees with a uniform high-spp reference (the stopping rule adds no bias
 that the bound would not cover)."""
 import numpy as np

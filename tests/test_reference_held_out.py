@@ -1,4 +1,4 @@
-"""The adaptive reference's stopping bias, and the held-out estimator that removes it (issue 20):
+"""The adaptive reference's stopping bias, and the held-out estimator that removes it:
 the loop of references.render run on pixels whose value is known exactly."""
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""References on textured scenes (issue 22): each set of samples is an Owen-scrambled Sobol' net,
+"""References on textured scenes: each set of samples is an Owen-scrambled Sobol' net,
 so thin texel rows and columns are integrated to within a point or two per edge however they fall
 in the pixel, the sets stay independent (the reported error stays honest), and a reference that
 stops at the sample cap says how many samples its worst pixel would take."""

@@ -1,4 +1,4 @@
-"""The sharpen strength sweep (issue 21's factor): a numeric strength is the named kernel at its w,
+"""The sharpen strength sweep (a factor of the findings, study.reporting.sharpen_sweep): a numeric strength is the named kernel at its w,
 the landing strength by hand, and a tiny study whose sweep agrees with its own static columns."""
 import json
 

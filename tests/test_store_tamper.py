@@ -1,4 +1,4 @@
-"""Tamper-evident store, complete keys and output hygiene (issue 11): an edited, corrupted or
+"""Tamper-evident store, complete keys and output hygiene: an edited, corrupted or
 swapped artefact is reported and re-made, never reaching a table; a subset run leaves no table of
 an earlier, larger one; files get the user's umask."""
 import json

@@ -1,5 +1,6 @@
-"""The TAA clip is well conditioned in float32 (issue 10 item 4; spec section 13 "Float32 and the
-clip"), and the displayed output's clamp at 0 is what the docs say.
+"""The TAA clip is well conditioned in float32 (INSIDE's epsilon of 1e-8 rounds
+m above 1 on a box face; taa_impl.kernels.clip_toward_centre), and the displayed output's clamp
+at 0 is what the docs say.
 
 The sequence test runs the float64 NumPy oracle on its own history and the Dr.Jit float32 kernels
 on theirs over the ghosting schedule of four hard scenes. With INSIDE's clip (clip_tol=0) they

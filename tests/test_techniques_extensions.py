@@ -1,4 +1,4 @@
-"""The baseline TAA's extension switches (spec section 7): Dr.Jit against the NumPy oracle with each
+"""The baseline TAA's extension switches (taa_impl/baseline.py): Dr.Jit against the NumPy oracle with each
 switch on, and a hand-computed case for each."""
 from __future__ import annotations
 

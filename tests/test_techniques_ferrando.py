@@ -1,4 +1,4 @@
-"""Ferrando's TAA (seed 004, taa_impl/ferrando.py): camera-only motion from depth, the fixed-weight
+"""Ferrando's TAA (Ferrando 2018, taa_impl/ferrando.py): camera-only motion from depth, the fixed-weight
 blend, and both clamp variants, by hand."""
 from __future__ import annotations
 
@@ -110,7 +110,7 @@ def test_reprojection_follows_the_camera():
     valid = (px > 1) & (px < W - 1) & (py > 1) & (py < H - 1)   # away from the clamped border
     assert valid.mean() > 0.3
     np.testing.assert_allclose(out[valid], cur["color"][valid], atol=1e-3)
-    # the seed's sign (history at pixel + motion) would miss by a lot
+    # Ferrando's sign (history at pixel + motion) would miss by a lot
     wrong = taa_impl.make("taa_ferrando_code_noclamp", history_weight=1.0, motion_source="buffer")
     first = frame_for(PREV)
     first["motion"] = np.zeros((H, W, 2), F)

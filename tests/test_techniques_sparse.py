@@ -1,4 +1,4 @@
-"""Sparse-supersampling TAA (seed 002, taa_impl/sparse.py): the reuse test, the composite, the
+"""Sparse-supersampling TAA (Li, Chen, Zhang 2021, taa_impl/sparse.py): the reuse test, the composite, the
 driver protocol (invalid_mask -> supersampled -> process) and the statistics."""
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """The thesis's published figures live in one data file (study/reporting/thesis_figures.toml) that
-the report reads: its values are the thesis's (spec section 11 and Table 5.1, copied by hand here),
+the report reads: its values are the thesis's (Oliveros 2018, §5.2 and Table 5.1, copied by hand here),
 and a malformed file is refused naming the file, the table and the scenes."""
 import pytest
 

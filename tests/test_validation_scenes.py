@@ -1,4 +1,4 @@
-"""Issue 11, validation at the boundary: scene numbers, directions, meshes, OBJ encodings and the
+"""Validation at the boundary: scene numbers, directions, meshes, OBJ encodings and the
 EXR writer's output hygiene (stdout, file mode)."""
 import copy
 import json

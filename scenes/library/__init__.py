@@ -1,6 +1,6 @@
 """The built-in scene library beyond the first few scenes of scenes/builtin.py, all procedural.
 
-thesis.py      the thesis's remaining test scenes (spec section 10): blinds, arched window, hard
+thesis.py      the thesis's remaining test scenes (Oliveros 2018, §5.2): blinds, arched window, hard
                edges seen from far, the hairball (static / rotating, unlit / lit), the atrium
 hard_cases.py  cases chosen to break TAA: sub-pixel lines, moire, HDR contrast, a fast object,
                disocclusion, a camera cut

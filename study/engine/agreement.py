@@ -1,7 +1,7 @@
-"""The proof that the raster and the reference see the same scene (foundation issue).
+"""The proof that the raster and the reference see the same scene.
 
 - agreement: mean of N jittered raster frames (Halton(2,3), period N) against the Mitsuba
-  reference, as PSNR of display images (spec section 8, before 8-bit quantisation; the
+  reference, as PSNR of display images (display/__init__.py, before 8-bit quantisation; the
   reference's noise removed with its halves, study.metrics.uncertainty) and as
   relative MSE in linear HDR, mean((x - r)^2 / (r^2 + 0.01)).
 - interior error: raster pixel centre (zero jitter) against one Mitsuba ray through the same

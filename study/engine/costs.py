@@ -1,7 +1,7 @@
 """What each technique costs per output frame, measured serially (never beside other work, so a
 parallel study does not time contention).
 
-A technique's frame costs the samples it shades plus its resolve (spec section 13): No AA, FXAA,
+A technique's frame costs the samples it shades plus its resolve (docs/method.md): No AA, FXAA,
 SMAA and the TAAs shade one sample per pixel, SSAA N, sparse supersampling 1 plus the extra
 samples its mask asked for in the run (measured there). So per scene we time, on this machine:
   raster_ms     one raster frame of the buffers the technique reads (visibility + reconstruction

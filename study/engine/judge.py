@@ -1,4 +1,4 @@
-"""The metrics task: one test's runs judged against their references (spec section 9).
+"""The metrics task: one test's runs judged against their references (study.metrics.suite).
 
 One task per (scene, protocol) judges every technique of the test whose metrics are missing, frame
 by frame. Each reference is read, display-encoded and quantised once for all of them (at 1600x900

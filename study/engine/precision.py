@@ -1,5 +1,5 @@
 """Precision set by the figures: each test's references refined until the reference's share of
-every figure's uncertainty is within its tolerance (issue 20).
+every figure's uncertainty is within its tolerance.
 
 A reference's noise matters only through the figures it is judged into, and those figures'
 uncertainty is measured, not assumed, in two parts:

@@ -58,7 +58,7 @@ def _setup(ctx: Context):
 
 
 def display_of(cache, scene, t: int, w: int, h: int, display_settings: dict):
-    """Frame t's display transform (spec section 8): from its reference at `display_settings`,
+    """Frame t's display transform (display/__init__.py): from its reference at `display_settings`,
     the probe bound (study.config.precision), whatever the precision of the references it is
     judged against. Its white point is the brightest pixel, a noisy extreme: on frame 0 of
     hairball_rotating_lit at 1600x900 it was 1.0344 at 2 LSB and 1.0352 at 8, either side of

@@ -1,4 +1,4 @@
-"""Image metrics (spec section 9): on 8-bit display images as the thesis did, plus FLIP and a
+"""Image metrics (Oliveros 2018, §3.9; Wang 2004 SSIM; Andersson 2020 FLIP): on 8-bit display images as the thesis did, plus FLIP and a
 relative MSE in linear HDR so tone mapping cannot hide errors.
 
   MSE, RMSD        over all pixels and channels of the 8-bit images
