@@ -6,7 +6,7 @@ PY := .venv/bin/python
 export PYTHONDONTWRITEBYTECODE :=
 STAMP := .venv/.setup-stamp
 
-.PHONY: study test setup clean-cache paper
+.PHONY: study test setup clean-cache paper results
 
 $(STAMP): pyproject.toml scripts/setup.sh scripts/apt_install.sh
 	bash scripts/setup.sh
@@ -16,6 +16,10 @@ setup: $(STAMP)
 
 study: $(STAMP)
 	$(PY) -m study run --profile quick
+
+# docs/results.md and the README's results block from the quick study's folder (taa-study results).
+results: $(STAMP)
+	$(PY) -m study results --out out/quick
 
 # The suite builds the paper: TeX is installed first, and a PDF test that finds no TeX fails
 # instead of skipping (TAA_REQUIRE_LATEX). It runs in TEST_WORKERS processes (pytest-xdist; the
