@@ -211,10 +211,38 @@ def test_each_technique_s_maps_and_image_are_its_own(tiny_study):
         _, want = read_exr(own)
         _, got = read_exr(out / rel)
         assert sorted(got) == sorted(want) and all(np.array_equal(got[k], want[k]) for k in want), rel
-        ssim = np.asarray(Image.open(out / rel.replace(".exr", "_ssim.png")))
-        assert np.array_equal(ssim, np.round(np.clip(want["ssim"], 0, 1) * 255).astype(np.uint8)), rel
+        # the SSIM PNG is that map at 8 bits, but for the pixels painted where the reference's noise
+        # exceeds its colour step (study.reporting.map_noise; tests/test_map_noise.py)
+        from study.reporting.map_noise import MARK_RGB
+        ssim = np.asarray(Image.open(out / rel.replace(".exr", "_ssim.png")).convert("RGB"))
+        painted = np.all(ssim == MARK_RGB, axis=-1)
+        grey = np.round(np.clip(want["ssim"], 0, 1) * 255).astype(np.uint8)
+        assert np.array_equal(ssim[~painted], np.repeat(grey[..., None], 3, -1)[~painted]), rel
         checked.add(rel.split("_")[-1])
     assert checked >= {"noaa.exr", "baseline.exr"}, checked       # both columns' maps differ
+
+
+@pytest.mark.long(seconds=17)
+def test_a_study_s_maps_are_painted_as_its_marks_say(tiny_study):
+    """A tiny study's static maps: the painted pixels are the ones marked.json counts, the FLIP map's
+    within the SSIM map's (its threshold is higher), and the report's caption says so."""
+    from study.reporting import map_noise as M
+    out, _ = tiny_study
+    notes = sorted(out.glob("maps/static_*_marked.json"))
+    assert notes
+    for p in notes:
+        rec = json.loads(p.read_text())
+        stem = p.name[:-len("_marked.json")]
+        for kind in M.KINDS:
+            maps = sorted(out.glob(f"maps/{stem}_*_{kind}.png"))
+            assert maps
+            for m in maps:
+                rgb = np.asarray(Image.open(m).convert("RGB"))
+                assert int(np.all(rgb == M.MARK_RGB, axis=-1).sum()) == rec["marked"][kind], m
+        assert rec["marked"]["flip"] <= rec["marked"]["ssim"]
+        assert rec["threshold_lsb"] == {k: M.threshold_lsb(k) for k in M.KINDS}
+    page = (out / "report.html").read_text()
+    assert page.count('class="note maps-note"') == len(notes) and "marked, not refined" in page
 
 
 # -- in a browser -------------------------------------------------------------------------------------

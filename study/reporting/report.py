@@ -14,7 +14,7 @@ from display import DisplayTransform
 from provenance.files import write_bytes_atomic, write_text_atomic
 from study.config.protocols import GHOSTING_FIGURES
 from study.engine.results import shown_frames
-from study.reporting import plots
+from study.reporting import map_noise, plots
 from study.reporting.encode import display_8bit, exr_bytes, magma, png, slug
 from study.reporting.findings_text import floor_note, precision_note
 from study.reporting.summaries import Summaries
@@ -131,6 +131,19 @@ class Report(Summaries, Upscaling, SharpenSweep):
             return shown[0]
         self._file(f"images/{stem}_{res.scene}_reference.png", lambda: png(disp().to_8bit(ref.image)),
                    {"reference": ref.key}, parallel=True)
+        marked = {}           # kind -> the pixels the reference's noise leaves unresolved (map_noise)
+        if any(a["frame"] in a["maps_for"] for a in res.artefacts.values()):
+            se = map_noise.reference_se_lsb(ref, disp())
+            marked = {k: map_noise.marks(se, k) for k in map_noise.KINDS}
+            counts = {k: int(m.sum()) for k, m in marked.items()}
+            self._file(f"maps/{stem}_{res.scene}_marked.json", json.dumps(
+                {"rule": "reference display SE (worst channel, 8-bit LSB) > threshold", "steps": map_noise.MAP_STEPS,
+                 "threshold_lsb": {k: map_noise.threshold_lsb(k) for k in marked}, "marked": counts,
+                 "pixels": int(se.size), "se_lsb_p999": float(np.percentile(se, 99.9)),
+                 "note": map_noise.note(counts, int(se.size))}, indent=1, sort_keys=True),
+                {"reference": ref.key, "thresholds": map_noise.THRESHOLDS, "steps": map_noise.MAP_STEPS})
+        mkey = {"reference": ref.key, "thresholds": map_noise.THRESHOLDS, "steps": map_noise.MAP_STEPS,
+                "mark": map_noise.MARK_RGB}
         for label, a in res.artefacts.items():
             f = a["frame"]
             key = {"run": a["run_key"], "metrics": a["metrics_key"], "frame": f}
@@ -149,9 +162,12 @@ class Report(Summaries, Upscaling, SharpenSweep):
                     maps.update(self.artefacts.maps(a, f))
                 return maps
             # made later, on the pool: each bound to this technique's maps, not the loop's last
-            self._file(f"maps/{base}_ssim.png", lambda g=get_maps: png(np.round(np.clip(g()["ssim"], 0, 1) * 255)
-                                                                      .astype(np.uint8)), key, parallel=True)
-            self._file(f"maps/{base}_flip.png", lambda g=get_maps: png(magma(g()["flip_ldr"])), key, parallel=True)
+            # painted where the reference's noise exceeds the map's colour step (study.reporting.map_noise)
+            self._file(f"maps/{base}_ssim.png", lambda g=get_maps: png(map_noise.paint(
+                np.round(np.clip(g()["ssim"], 0, 1) * 255).astype(np.uint8), marked["ssim"])),
+                {**key, "marks": mkey}, parallel=True)
+            self._file(f"maps/{base}_flip.png", lambda g=get_maps: png(map_noise.paint(
+                magma(g()["flip_ldr"]), marked["flip"])), {**key, "marks": mkey}, parallel=True)
             self._file(f"maps/{base}.exr", lambda g=get_maps: exr_bytes(g()), key, parallel=True)
 
     def overview(self, views: dict) -> None:

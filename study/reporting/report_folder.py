@@ -94,6 +94,9 @@ def collect(out_dir: Path) -> dict:
             title, note = _md_title_note(out_dir / f"tables/{stem}_{scene}.md")
             m = re.fullmatch(rf"Static test, (.+): {re.escape(scene)}", title)
             sd["static"][m.group(1) if m else stem] = {"reference": ref, "techniques": techniques}
+            if have(f"maps/{stem}_{scene}_marked.json"):      # what the maps' painted pixels mean (map_noise)
+                marked = json.loads((out_dir / f"maps/{stem}_{scene}_marked.json").read_text())
+                sd["static"][m.group(1) if m else stem]["maps_note"] = str(marked.get("note", ""))
             m = re.search(r"Reference agreement.*", note)
             if m and sd["agreement"] is None:
                 sd["agreement"] = {"note": m.group().strip()}
