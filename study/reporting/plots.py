@@ -156,17 +156,17 @@ def overview(results, columns: dict, thesis: dict | None = None, title: str = ""
                     label=name, zorder=3)
         if tx:
             ax.scatter(tx, ty, s=30, facecolors="none", edgecolors=colour, linewidths=1.0, zorder=2)
-    ax.set_yticks(range(len(rows)), [r.scene for r in rows], fontsize=7)
+    ax.set_yticks(range(len(rows)), [r.scene for r in rows], fontsize=8)
     ax.set_ylim(len(rows) - 0.5, -0.5)
     for i in range(1, len(rows)):
         ax.axhline(i - 0.5, color="#e5e5e5", lw=0.6, zorder=0)
     ax.grid(axis="x", color="#eeeeee", lw=0.6)
     ax.set_xlabel("PSNR (dB) against the reference; higher is better. Filled: ours ± reference uncertainty; "
-                  "ring: the thesis's", fontsize=6.5)
-    ax.tick_params(axis="x", labelsize=7)
+                  "ring: the thesis's", fontsize=7)
+    ax.tick_params(axis="x", labelsize=8)
     if title:
-        ax.set_title(title, fontsize=8)
-    ax.legend(fontsize=6.5, loc="upper center", bbox_to_anchor=(0.5, -0.16 - 0.3 / max(len(rows), 3)),
+        ax.set_title(title, fontsize=9)
+    ax.legend(fontsize=7.5, loc="upper center", bbox_to_anchor=(0.5, -0.16 - 0.3 / max(len(rows), 3)),
               ncol=min(k, 5), frameon=False, handletextpad=0.2, columnspacing=0.9)
     fig.tight_layout()
     return fig_bytes(fig)
