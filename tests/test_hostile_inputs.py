@@ -136,3 +136,29 @@ def test_an_unsupported_taa_variant_exits_2_naming_it(variant, words):
     for w in words:
         assert w in r.stderr, (w, r.stderr)
     assert "Traceback" not in r.stderr and r.stdout == "", r.stderr
+
+
+@pytest.mark.long(60)
+def test_bench_as_the_readme_gives_it_times_every_technique_upscalers_at_their_scales():
+    """`taa-study bench` without --technique (the README's speed command) at a tiny size: every
+    registered technique has an entry, each upscaler one per render scale, all finite times."""
+    import math
+
+    import taa_impl
+    r = CliRunner().invoke(main, ["bench", "--width", "48", "--height", "27", "--repeats", "1",
+                                  "--render-scale", "0.5,1", "--json"])
+    assert r.exit_code == 0, r.output[-3000:]
+    res = json.loads(r.stdout)
+    want = []
+    for name in taa_impl.TECHNIQUES:
+        if getattr(taa_impl.make(name), "upsamples", False):
+            want += [f"{name} ×0.5", f"{name} ×1"]
+        else:
+            want.append(name)
+    assert list(res["techniques"]) == want
+    assert {"fsr2 ×0.5", "taau ×1", "upscale_spatial ×0.5"} <= set(want)
+    for name in want:
+        ms = res["techniques"][name]["ms"]
+        assert math.isfinite(ms) and ms > 0 and math.isfinite(res["bandwidth_floor_ms"][name]), name
+    # an upscaler at 0.5 reads a quarter of the inputs it reads at 1
+    assert res["bandwidth_floor_ms"]["fsr2 ×0.5"] < res["bandwidth_floor_ms"]["fsr2 ×1"]

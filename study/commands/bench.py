@@ -10,6 +10,9 @@ the NumPy oracle on the same input and a memory-bandwidth floor measured in the 
 - Bandwidth floor: bytes the technique must read and write per pixel (its buffers, the history it
   reads and writes, its output) divided by the copy bandwidth of this machine, measured with a
   Dr.Jit copy kernel over 256 MiB.
+- Upscalers (taa_impl.upscale) are timed at each render scale (`render_scales`, the full study's
+  by default), one entry each ('fsr2 ×0.5'): a frame at render_size(width, height, scale) in,
+  the width x height output out; their floor counts the inputs at that scale.
 """
 from __future__ import annotations
 
@@ -70,10 +73,17 @@ def _oracle_module():
     return mod
 
 
-def bytes_per_pixel(tech) -> int:
+# the full study's render scales (study/config/profiles/full.toml)
+RENDER_SCALES = (0.5, 0.67, 0.77, 1.0)
+
+
+def bytes_per_pixel(tech) -> float:
+    """Bytes read and written per output pixel: the inputs (at an upscaler's render scale), the
+    history, the output."""
     state = int(getattr(tech, "history_bytes_per_pixel", 0))
     inp = tech.inputs
-    return inp.subframes * sum(BYTES.get(b, 4) for b in inp.buffers) + state + 12   # + the output
+    inputs = inp.subframes * sum(BYTES.get(b, 4) for b in inp.buffers) * inp.render_scale ** 2
+    return inputs + state + 12   # + the output
 
 
 def _extra_inputs(tech, frame, width, height) -> dict:
@@ -111,29 +121,50 @@ def _kernel_only(tech, frame, width, height):
     return kernel
 
 
-def bench(width: int, height: int, repeats: int = 7, techniques=None, numpy_repeats: int = 3,
-          log=print) -> dict:
+def _runs(names, render_scales):
+    """(entry label, technique) for each name; an upscaler once per render scale."""
     import taa_impl
+    for name in names:
+        tech = taa_impl.make(name)
+        if getattr(tech, "upsamples", False):
+            for s in render_scales:
+                yield f"{name} ×{float(s):g}", taa_impl.make(name, render_scale=float(s))
+        else:
+            yield name, tech
+
+
+def bench(width: int, height: int, repeats: int = 7, techniques=None, numpy_repeats: int = 3,
+          log=print, render_scales=RENDER_SCALES) -> dict:
+    """Per-frame milliseconds of each technique (upscalers at each of `render_scales`) at an output
+    of width x height; see the module notes for what is timed."""
+    import taa_impl
+    from taa_impl.upscale import render_size
     frame = synthetic_frame(width, height)
     bw = copy_bandwidth()
     log(f"copy bandwidth: {bw / 1e9:.2f} GB/s")
     oracle = _oracle_module()
     names = techniques or [n for n in taa_impl.TECHNIQUES]
     out = {"width": width, "height": height, "backend": backend.VARIANT, "copy_bandwidth_gbs": bw / 1e9,
+           "render_scales": [float(s) for s in render_scales],
            "techniques": {}, "end_to_end_ms": {}, "numpy_ms": {}, "bandwidth_floor_ms": {}}
-    for name in names:
-        tech = taa_impl.make(name)
+    for name, tech in _runs(names, render_scales):
         log(f"timing {name} ...")
-        kw = _extra_inputs(tech, frame, width, height)
+        size = {}
+        src = frame
+        if getattr(tech, "upsamples", False):
+            rw, rh = render_size(width, height, tech.params.render_scale)
+            src = synthetic_frame(rw, rh)
+            size = {"output_size": (width, height)}
+        kw = {**_extra_inputs(tech, src, width, height), **size}
         if tech.inputs.sampling == "supersample":
             subs = [frame] * tech.inputs.subframes
             out["end_to_end_ms"][name] = median_ms(lambda: tech.process_samples(subs), repeats)
             out["techniques"][name] = {"ms": out["end_to_end_ms"][name]}
         else:
-            run = lambda: tech.process(frame, jitter=(0, 0), far=100.0, **kw)  # noqa: E731
+            run = lambda: tech.process(src, jitter=(0, 0), far=100.0, **kw)  # noqa: E731
             run()                                        # compile, fill history
             out["end_to_end_ms"][name] = median_ms(run, repeats)
-            kernel = _kernel_only(tech, frame, width, height)
+            kernel = None if size else _kernel_only(tech, frame, width, height)
             out["techniques"][name] = {"ms": median_ms(kernel, repeats) if kernel else out["end_to_end_ms"][name]}
         out["bandwidth_floor_ms"][name] = 1000 * bytes_per_pixel(tech) * width * height / bw
         if oracle is not None and name in ("taa_baseline", "taa_improved"):

@@ -154,11 +154,16 @@ def _technique_names(ctx, param, value):
               help="Timed runs per technique (median).")
 @click.option("--technique", "tech_names", multiple=True, callback=_technique_names,
               help="Only these techniques (repeatable).")
+@click.option("--render-scale", "scale_text", default=None, metavar="S[,S...]",
+              help="The upscalers' render scales, one entry each (default: the full study's, 0.5,0.67,0.77,1).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
-def bench(width, height, repeats, tech_names, as_json):
-    """Time each technique per frame against its NumPy oracle and the bandwidth floor."""
+def bench(width, height, repeats, tech_names, scale_text, as_json):
+    """Time each technique per frame (each upscaler at each render scale) against its NumPy oracle
+    and the bandwidth floor."""
+    from study.commands.bench import RENDER_SCALES
     from study.commands.bench import bench as run_bench
-    res = run_bench(width, height, repeats, list(tech_names) or None,
+    scales = _scales(scale_text) or RENDER_SCALES
+    res = run_bench(width, height, repeats, list(tech_names) or None, render_scales=scales,
                     log=(lambda m: None) if as_json else (lambda m: click.echo(m, err=True)))
     if as_json:
         click.echo(_strict_json(res))
