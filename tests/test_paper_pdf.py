@@ -1,5 +1,6 @@
-"""Comparison figures with insets (study.reporting.figures) on synthetic images, and the paper's PDF
-(study.reporting.paper_pdf + paper/main.tex) built from a real tiny study's tables and figures where LaTeX is
+"""Comparison figures with insets (study.reporting.figures) on synthetic images, the paper's tables set
+for the page (study.reporting.paper_tables), and the paper's PDF (study.reporting.paper_pdf +
+paper/main.tex + paper/references.bib) built from a real tiny study's tables and figures where LaTeX is
 installed (`make test` and `make paper` install it; a plain pytest run elsewhere skips it with the
 reason, `make test` fails instead)."""
 import io
@@ -90,10 +91,44 @@ def test_figure_refuses_mismatched_inputs():
         inset_regions({"A": np.zeros((H, W))}, size=H + 1)
 
 
-def test_tables_get_a_label_after_their_caption():
-    tex = "\\begin{table}[t]\n\\begin{tabular}{lr}\na & b \\\\\n\\end{tabular}\n\\caption{T}\n\\end{table}\n"
-    out = paper_pdf._labelled_table(tex, "static_pipe")
-    assert out.endswith("\\caption{T}\n\\label{tab:static_pipe}\n\\end{table}\n")
+def _wide_table(n_techniques=13):
+    """A static test's table as the study writes it, one column per technique (thirteen: the quick
+    profile's), with long labels."""
+    from study.reporting.tables import thesis_layout
+    labels = [f"Technique {i}, sharpen w=0.{i}" for i in range(n_techniques)]
+    rng = np.random.default_rng(3)
+    results = {l: {"psnr": 30 + rng.random(), "ssim": rng.random(), "mse": 100 * rng.random(),
+                   "flip_ldr": rng.random(), "relmse_hdr": rng.random() / 10} for l in labels}
+    unc = {l: {m: 1e-3 for m in results[l]} for l in labels}
+    return thesis_layout("Static test: pipe", results, ["mse", "psnr", "ssim", "flip_ldr", "relmse_hdr"],
+                         labels[4], "A note.", unc).latex(), labels
+
+
+def test_a_wide_table_is_transposed_or_split_never_shrunk():
+    from study.reporting.paper_tables import LINE_PT, paper_table, parse
+    tex, labels = _wide_table()
+    t = parse(tex)
+    assert t.header[1:-3] == [l.replace("_", "\\_") for l in labels] and len(t.rows) == 5
+    out, how = paper_table(tex, "tab:static_pipe")
+    # five metrics by thirteen techniques: a row per technique, a column per metric, which fits
+    assert how["transposed"] and how["parts"] == 1 and how["width_pt"] <= LINE_PT
+    assert "\\resizebox" not in out and "\\tiny" not in out and "\\scalebox" not in out
+    assert out.count("\\label{tab:static_pipe}") == 1 and "\\footnotesize" in out
+    # the techniques are now the rows (their labels first in a row), the metrics the heading
+    body = out.split("\\endlastfoot", 1)[1]
+    assert [ln.split(" & ")[0] for ln in body.strip().splitlines()[:13]] == labels
+    # too many columns even transposed: split into groups repeating the label column, each fitting
+    many = paper_table(tex, "tab:x", line_pt=220.0)
+    assert many[1]["parts"] >= 2 and many[1]["width_pt"] <= 220.0
+    assert many[0].count("\\begin{longtable}") == many[1]["parts"] and "columns 1--" in many[0]
+    # a table of wrapped text columns wider than the line is narrowed to it, its text kept at 8 pt
+    wrapped = ("\\begin{table}[t]\n\\footnotesize\n\\begin{tabular}{" + "".join(
+        f">{{\\raggedright\\arraybackslash}}p{{{w}\\linewidth}}" for w in (0.5, 0.5, 0.3)) + "}\n\\toprule\n"
+        "a & b & c \\\\\n\\midrule\nx & y & z \\\\\n\\bottomrule\n\\end{tabular}\n\\caption{W}\n\\end{table}\n")
+    out, how = paper_table(wrapped, "tab:w")
+    assert how["parts"] == 1 and how["width_pt"] == pytest.approx(LINE_PT, abs=0.5)
+    with pytest.raises(ValueError, match="not a booktabs table"):
+        parse("\\begin{tabular}{l}a\\end{tabular}")
 
 
 # -- the PDF -------------------------------------------------------------------------------------------
@@ -110,8 +145,24 @@ def _latex_missing():
     return None
 
 
-@pytest.mark.long(seconds=12)
-def test_paper_builds_from_a_tiny_study_with_every_table_and_figure(tmp_path):
+SECTIONS = ("Introduction", "Related work", "Method", "Results", "Discussion", "Limitations", "Reproducibility",
+            "References")
+CITED = {"karis2014", "xu2016", "pedersen2016", "salvi2016", "yang2020", "lottes2009", "jimenez2012", "wang2004",
+         "andersson2020", "mantiuk2024", "reinhard2002", "fsr2", "oliveros2018", "li2021", "marin2015",
+         "ferrando2018", "mitsuba3", "jakob2022"}
+MIN_TEXT_PT = 6.0
+
+
+def _headings(pdf) -> list[str]:
+    """The PDF's numbered section headings and its 'References', in page order (pdfminer.six)."""
+    from pdfminer.high_level import extract_text
+    text = extract_text(str(pdf))
+    return re.findall(r"^(?:\d+\s+|[A-Z]\s+)?(" + "|".join(SECTIONS) + r"|Every table and figure[^\n]*)\s*$",
+                      text, re.M)
+
+
+@pytest.mark.long(seconds=20)
+def test_paper_builds_from_a_tiny_study_with_its_sections_and_no_text_under_6pt(tmp_path):
     why = _latex_missing()
     if why:
         print(f"skipping the PDF build: {why}")
@@ -119,7 +170,8 @@ def test_paper_builds_from_a_tiny_study_with_every_table_and_figure(tmp_path):
     out = run_tiny_study(tmp_path, "noaa", "taa_baseline")
     paper = tmp_path / "paper"
     paper.mkdir()
-    shutil.copy(PAPER / "main.tex", paper / "main.tex")       # the repository's own paper
+    for name in ("main.tex", "references.bib"):                # the repository's own paper
+        shutil.copy(PAPER / name, paper / name)
     got = paper_pdf.fill_generated(out, paper)
     tables = sorted(p.stem for p in (out / "tables").glob("*.tex"))
     assert sorted(got["tables"]) == sorted(t for t in tables if t != "findings_summary")
@@ -128,25 +180,31 @@ def test_paper_builds_from_a_tiny_study_with_every_table_and_figure(tmp_path):
     assert sorted(f for f in got["figures"] if f.startswith("comparison_")) == \
         ["comparison_tiny_moving.png", "comparison_tiny_still.png"]
     assert set(got["figures"]) >= {p.name for p in (out / "plots").glob("*.png")}
+    # the results say where they are from; the reproducibility section names the manifest's hash
+    import hashlib
+    assert "Profile quick, at 36$\\times$20, 40$\\times$24;" in (paper / "generated/scope.tex").read_text()
+    assert hashlib.sha256((out / "manifest.json").read_bytes()).hexdigest() in \
+        (paper / "generated/reproducibility.tex").read_text()
 
     start = time.perf_counter()
     pdf = paper_pdf.build_pdf(paper)
     took = time.perf_counter() - start
     c = paper_pdf.contents(paper)
-    print(f"paper: {c['pages']} pages, {len(got['tables'])} tables, {len(got['figures'])} figures, "
-          f"{c['overfull']} overfull boxes, built in {took:.1f} s: {pdf}")
+    sizes = paper_pdf.text_sizes(pdf)
+    print(f"paper: {c['pages']} pages ({c['body_pages']} body), {len(got['tables'])} tables, "
+          f"{len(got['figures'])} figures, {c['overfull']} overfull boxes, smallest text {sizes['min_pt']:.2f} pt, "
+          f"built in {took:.1f} s: {pdf}")
     assert pdf.is_file() and pdf.read_bytes()[:5] == b"%PDF-"
     assert set(c["labels"]) >= {f"tab:{t}" for t in got["tables"]} | {f"fig:{Path(f).stem}" for f in got["figures"]}
     assert c["graphics"] == sorted(f"generated/figures/{f}" for f in got["figures"])
-    # the findings (the body's table) and the reproduction table (the appendix's second) wrap their
-    # text to the line instead of being shrunk; the body is a few pages, the appendix after it
-    assert len(c["table_widths"]) == len(got["tables"]), c["table_widths"]
-    assert c["table_widths"][0] <= 1.0 and c["table_widths"][2] <= 1.0, c["table_widths"]
-    assert c["body_table_widths"] == c["table_widths"][:1]
+    # a paper: its sections in order, then the appendix; every citation resolved by bibtex
+    assert _headings(pdf)[:len(SECTIONS)] == list(SECTIONS), _headings(pdf)
+    assert c["undefined_citations"] == [] and set(c["bibliography"]) == CITED
     assert 1 <= c["body_pages"] <= 12 and "sec:appendix" in c["labels"]
-    # every appendix table and figure is a float on a page of its own ('\clearpage' between them)
-    n_appendix = len(got["tables"]) + len(got["figures"]) - len(got["body"])
-    assert c["pages"] >= c["body_pages"] + n_appendix
+    # no text under 6 pt on any page (nothing shrunk), and none run past the page's margins
+    assert sizes["pages"] == c["pages"] and sizes["min_pt"] >= MIN_TEXT_PT, \
+        {p: s for p, s in sizes["sizes"].items() if s < MIN_TEXT_PT}
+    assert sizes["outside"] == [] and c["overfull"] == 0
     if shutil.which("pdfinfo"):
         info = subprocess.run(["pdfinfo", str(pdf)], capture_output=True, text=True, check=True).stdout
         assert re.search(rf"^Pages:\s+{c['pages']}$", info, re.M) and "(A4)" in info
@@ -154,6 +212,21 @@ def test_paper_builds_from_a_tiny_study_with_every_table_and_figure(tmp_path):
         subprocess.run(["pdftoppm", "-png", "-r", "60", "-f", "1", "-l", "3", str(pdf), str(tmp_path / "page")],
                        check=True)
         print("pages as PNG:", " ".join(str(p) for p in sorted(tmp_path.glob("page*.png"))))
+
+
+def test_the_size_check_sees_a_shrunk_table_and_text_past_the_margin(tmp_path):
+    """The old template's way with a wide table (\resizebox of a \tiny tabular) reads as text under
+    6 pt, and a line run into the margin as text outside it."""
+    why = _latex_missing()
+    if why:
+        pytest.skip(why)
+    (tmp_path / "main.tex").write_text(
+        "\\documentclass[10pt,a4paper]{article}\n\\usepackage[margin=2cm]{geometry}\\usepackage{graphicx}\n"
+        "\\begin{document}\nNormal text.\n\n\\resizebox{\\linewidth}{!}{\\tiny\\begin{tabular}{" + "l" * 30 + "}"
+        + " & ".join(["column"] * 30) + " \\\\\\end{tabular}}\n\n\\noindent\\hspace*{18cm}\\mbox{overrun}\n\\end{document}\n")
+    s = paper_pdf.text_sizes(paper_pdf.build_pdf(tmp_path))
+    assert s["pages"] == 1 and s["min_pt"] < 5.5 and s["sizes"][1] == s["min_pt"]
+    assert "".join(t for _, t in s["outside"]) == "overrun"
 
 
 def test_a_latex_error_is_reported_with_its_line(tmp_path):

@@ -1,15 +1,23 @@
 """The paper's generated part and its PDF, for any paper folder (the repository's paper/ or a copy).
 
-    fill_generated(src, paper_dir) -> {"tables": [stems], "figures": [file names], "body": [...]}
-        copies a finished study's LaTeX tables (src/tables/*.tex), its plots and one comparison
-        figure with insets per scene (study.reporting.figures, from the thesis protocol's images and
-        FLIP maps) into paper_dir/generated/, each table and figure labelled (tab:<stem>,
-        fig:<stem>), and writes what main.tex pulls in: generated/summary.tex (the findings in
-        sentences), generated/body.tex (the findings and sharpen-test tables, three or four
-        scenes' comparison figures, the speed-against-error and convergence plots: what a reader
-        needs, set at print size) and generated/appendix.tex (every other table and figure);
-    build_pdf(paper_dir) -> paper_dir/main.pdf      (latexmk, or pdflatex twice);
-    contents(paper_dir) -> {"pages", "labels", "graphics", "overfull"}   read back from .aux and .log.
+    fill_generated(src, paper_dir) -> {"tables": [stems], "figures": [file names], "body": [...],
+                                       "layout": {stem: how the table was set}}
+        copies a finished study's LaTeX tables (src/tables/*.tex), set for the page by
+        study.reporting.paper_tables (8 pt longtables; too wide ones transposed or split, never
+        shrunk), its plots and one comparison figure with insets per scene (study.reporting.figures,
+        from the thesis protocol's images and FLIP maps) into paper_dir/generated/, each table and
+        figure labelled (tab:<stem>, fig:<stem>), and writes what main.tex pulls in:
+        generated/summary.tex (the findings in sentences), generated/scope.tex (the profile,
+        resolutions and protocols the results are at), generated/discussion.tex (the measured
+        causes), generated/reproducibility.tex (command, commit, the manifest's SHA-256),
+        generated/body.tex (the findings and sharpen-test tables, three or four scenes' comparison
+        figures, the speed-against-error and convergence plots) and generated/appendix.tex (every
+        other table and figure);
+    build_pdf(paper_dir) -> paper_dir/main.pdf      (latexmk with bibtex, or pdflatex/bibtex/pdflatex x2);
+    contents(paper_dir) -> {"pages", "body_pages", "labels", "graphics", "overfull", "citations"}
+        read back from .aux and .log;
+    text_sizes(pdf) -> {"min_pt", "pages_under", ...}   every character's size and position
+        (pdfminer.six, the test extra): the smallest text and any past the page's margins.
 
 Only files the study's manifest lists are taken, so a folder shared with another study adds nothing.
 """
@@ -17,6 +25,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import re
 import shutil
 import subprocess
@@ -24,6 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
+from study.reporting import paper_sections as sections
+from study.reporting.paper_tables import paper_table
 from study.reporting.tables import technique_columns
 
 TABLE_ORDER = ("findings", "sharpen_test", "headline", "reproduction", "history_convergence", "speed_error")
@@ -45,14 +56,6 @@ def _tex_escape(s: str) -> str:
 
 def _label(stem: str) -> str:
     return re.sub(r"[^A-Za-z0-9:._-]+", "-", stem)
-
-
-def _labelled_table(tex: str, stem: str) -> str:
-    """The table with \\label{tab:stem} after its caption (labels must follow the caption)."""
-    if "\\end{table}" not in tex:
-        return tex
-    head, _, tail = tex.rpartition("\\end{table}")
-    return f"{head}\\label{{tab:{_label(stem)}}}\n\\end{{table}}{tail}"
 
 
 def _comparison(src: Path, listed: dict, stem: str, scene: str) -> bytes | None:
@@ -98,9 +101,14 @@ def fill_generated(src: Path, paper_dir: Path, comparison_stem: str = "static") 
                     key=lambda rel: (Path(rel).stem not in TABLE_ORDER,
                                      TABLE_ORDER.index(Path(rel).stem) if Path(rel).stem in TABLE_ORDER else 0,
                                      Path(rel).stem))
+    layout = {}
     for rel in tables:
         stem = Path(rel).stem
-        write_text_atomic(gen / "tables" / f"{stem}.tex", _labelled_table((src / rel).read_text(), stem))
+        try:
+            tex, layout[stem] = paper_table((src / rel).read_text(), f"tab:{_label(stem)}")
+        except ValueError as exc:
+            raise PaperError(f"{src / rel}: {exc}") from None
+        write_text_atomic(gen / "tables" / f"{stem}.tex", tex)
         (body if stem in BODY_TABLES else appendix).append(f"\\input{{generated/tables/{stem}}}")
     figures = []
     from study.reporting.report_folder import static_scenes
@@ -124,12 +132,19 @@ def fill_generated(src: Path, paper_dir: Path, comparison_stem: str = "static") 
         "This study judged none of the thesis's scenes, so it adjudicates none of its claims.\n"
     write_text_atomic(gen / "summary.tex", summary)
     head = "% generated by taa-study paper\n"
+    record = json.loads((src / "tables/findings.json").read_text()) if "tables/findings.json" in listed else None
+    summary_info = json.loads((src / "manifest.json").read_text()).get("summary", {})
+    write_text_atomic(gen / "scope.tex", head + sections.scope(record, summary_info) + "\n")
+    write_text_atomic(gen / "discussion.tex", head + sections.discussion(record) + "\n")
+    write_text_atomic(gen / "reproducibility.tex",
+                      head + sections.reproducibility(src / "manifest.json", summary_info) + "\n")
     write_text_atomic(gen / "body.tex", head + "\n".join(body) + "\n")
-    write_text_atomic(gen / "appendix.tex", head + "\n\\clearpage\n".join(appendix) + "\n")
-    write_text_atomic(gen / "results.tex", head + "\\input{generated/body}\n\\clearpage\n\\input{generated/appendix}\n")
+    # the appendix flows: a table or figure follows the last (longtables break across pages)
+    write_text_atomic(gen / "appendix.tex", head + "\n\\bigskip\n".join(appendix) + "\n")
     body_stems = [Path(rel).stem for rel in tables if Path(rel).stem in BODY_TABLES] + \
         [f[0] for f in figures if f[0] in in_body]
-    return {"tables": [Path(rel).stem for rel in tables], "figures": [f[0] for f in figures], "body": body_stems}
+    return {"tables": [Path(rel).stem for rel in tables], "figures": [f[0] for f in figures], "body": body_stems,
+            "layout": layout}
 
 
 def build_pdf(paper_dir: Path, timeout: float = 600) -> Path:
@@ -143,10 +158,14 @@ def build_pdf(paper_dir: Path, timeout: float = 600) -> Path:
     run = lambda cmd: subprocess.run(cmd, cwd=paper_dir, capture_output=True, text=True,   # noqa: E731
                                      timeout=timeout, errors="replace")
     flags = ["-interaction=nonstopmode", "-halt-on-error", "-file-line-error"]
-    if latexmk:
-        results = [run([latexmk, "-pdf", "-silent", f"-pdflatex=pdflatex {' '.join(flags)} %O %S", "main.tex"])]
-    else:   # twice, so that references and float lists settle
-        results = [run([pdflatex, *flags, "main.tex"]) for _ in range(2)]
+    if latexmk:     # latexmk runs bibtex and pdflatex until the references settle
+        results = [run([latexmk, "-pdf", "-bibtex", "-silent", f"-pdflatex=pdflatex {' '.join(flags)} %O %S",
+                        "main.tex"])]
+    else:           # pdflatex, bibtex, then pdflatex twice, so that citations and float lists settle
+        results = [run([pdflatex, *flags, "main.tex"])]
+        if shutil.which("bibtex") and "\\bibliography{" in (paper_dir / "main.tex").read_text(errors="replace"):
+            results.append(run(["bibtex", "main"]))
+        results += [run([pdflatex, *flags, "main.tex"]) for _ in range(2)]
     bad = [r for r in results if r.returncode != 0]
     if bad:
         log = paper_dir / "main.log"
@@ -157,27 +176,54 @@ def build_pdf(paper_dir: Path, timeout: float = 600) -> Path:
 
 
 def contents(paper_dir: Path) -> dict:
-    """What the last build holds: page count, labels (from main.aux), graphics files read,
-    overfull boxes and each table's natural width over the line width, in order (from main.log)."""
+    """What the last build holds: page count, the body's pages (before the appendix), labels (from
+    main.aux), graphics files read, overfull boxes, and citations LaTeX could not resolve and the
+    entries bibtex listed (from main.log and main.bbl)."""
     paper_dir = Path(paper_dir)
     aux = (paper_dir / "main.aux").read_text(errors="replace")
     log = (paper_dir / "main.log").read_text(errors="replace")
+    bbl = paper_dir / "main.bbl"
     pages = re.search(r"\\gdef\s*\\@abspage@last\{(\d+)\}", aux)
     if pages is None:
-        m = re.search(r"Output written on \S+ \((\d+) pages?", log)
-        pages = m
+        pages = re.search(r"Output written on \S+ \((\d+) pages?", log)
     appendix = re.search(r"\\newlabel\{sec:appendix\}\{\{[^}]*\}\{(\d+)\}", aux)
-    body_log = log.split("taa-appendix-start")[0]
     return {"pages": int(pages.group(1)) if pages else None,
-            # the body: the pages before the appendix, and its tables' natural widths over the line's
             "body_pages": int(appendix.group(1)) - 1 if appendix else None,
-            "body_table_widths": [float(w) / float(lw) for w, lw in
-                                  re.findall(r"taa-table: natural width ([\d.]+)pt \(line width ([\d.]+)pt\)", body_log)],
             "labels": re.findall(r"\\newlabel\{([^}]*)\}", aux),
             "graphics": sorted(set(re.findall(r"<(generated/figures/[^>,]+?\.png)", log.replace("\n", "")))),
             "overfull": len(re.findall(r"^Overfull \\hbox", log, re.M)),
-            "table_widths": [float(w) / float(lw) for w, lw in
-                             re.findall(r"taa-table: natural width ([\d.]+)pt \(line width ([\d.]+)pt\)", log)]}
+            "undefined_citations": sorted(set(re.findall(r"Citation `([^']+)' .*undefined", log))),
+            "bibliography": re.findall(r"\\bibitem\[[^\]]*\]\{([^}]+)\}",
+                                       bbl.read_text(errors="replace").replace("\n", " ")) if bbl.exists() else []}
 
 
-__all__ = ["fill_generated", "build_pdf", "contents", "PaperError"]
+def text_sizes(pdf: Path, margin_pt: float = 28.35) -> dict:
+    """Every character of `pdf` (pdfminer.six): {"min_pt": the smallest text size, "sizes": {page:
+    its smallest size}, "outside": [(page, text)] of characters closer than `margin_pt` (1 cm) to
+    the page's edge, "pages": the page count}. A size is the glyph's em in the page's units after
+    every scaling and rotation (what a \\resizebox or \\tiny shows as)."""
+    from pdfminer.high_level import extract_pages
+    from pdfminer.layout import LAParams, LTChar
+
+    def chars(obj):
+        if isinstance(obj, LTChar):
+            yield obj
+        elif hasattr(obj, "__iter__"):
+            for child in obj:
+                yield from chars(child)
+
+    sizes, outside, n = {}, [], 0
+    for n, page in enumerate(extract_pages(str(pdf), laparams=LAParams(all_texts=True)), start=1):
+        w, h = page.width, page.height
+        for ch in chars(page):
+            if not ch.get_text().strip():
+                continue
+            a, b = ch.matrix[0], ch.matrix[1]
+            size = ch.width if abs(b) > abs(a) else ch.height     # turned a quarter: the em lies along x
+            sizes[n] = min(sizes.get(n, math.inf), size)
+            if ch.x0 < margin_pt or ch.x1 > w - margin_pt or ch.y0 < margin_pt * 0.5 or ch.y1 > h - margin_pt * 0.5:
+                outside.append((n, ch.get_text()))
+    return {"min_pt": min(sizes.values(), default=math.nan), "sizes": sizes, "outside": outside, "pages": n}
+
+
+__all__ = ["fill_generated", "build_pdf", "contents", "text_sizes", "PaperError"]
