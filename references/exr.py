@@ -2,10 +2,14 @@
 into place, so a reader never sees a half-written image.
 
 OpenEXR's Python binding prints some warnings (e.g. "Exception raised reading pixel data" for a
-truncated file) through Python's sys.stdout, which would corrupt a `--json` document. Each library
-call runs with sys.stdout captured, and with file descriptor 2 too: its C core writes each error
-of a damaged file to stderr itself, several times for one file. What either printed goes, once per
-line, into the exception message if the call fails, else to stderr.
+truncated file) through Python's sys.stdout, which would corrupt a `--json` document, and its C
+core writes each error of a damaged file to file descriptor 2 itself, several times for one file.
+Each library call runs with both captured; what the library said goes, once per line, into the
+exception message if the call fails, else to stderr. sys.stdout and fd 2 belong to the whole
+process while the report reads and writes images on a thread pool: one call at a time captures
+them (a process-wide lock; the binding holds the GIL through a read anyway), and only the calling
+thread's prints are taken from sys.stdout, so another thread's output is neither swallowed nor
+left redirected.
 """
 from __future__ import annotations
 
@@ -15,6 +19,7 @@ import os
 import secrets
 import sys
 import tempfile
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -25,36 +30,73 @@ class ExrError(ValueError):
     """An EXR file could not be read or written; the message names the file and the library's words."""
 
 
-@contextlib.contextmanager
-def _c_stderr(box: list):
-    """Collect what C code writes to file descriptor 2 during the block into `box` (one string)."""
-    sys.stderr.flush()
-    saved = os.dup(2)
-    with tempfile.TemporaryFile() as tmp:
-        os.dup2(tmp.fileno(), 2)
-        try:
-            yield box
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-            tmp.seek(0)
-            box.append(tmp.read().decode("utf-8", "replace"))
+_LOCK = threading.RLock()       # one library call at a time captures the process's stdout and fd 2
+
+
+class _ThreadStdout(io.TextIOBase):
+    """sys.stdout during one library call: that thread's writes are kept, every other thread's go
+    to the stream it stands in for."""
+
+    def __init__(self, stream):
+        self.stream, self.thread, self.kept = stream, threading.get_ident(), io.StringIO()
+
+    def write(self, s):
+        if self.thread == threading.get_ident():
+            return self.kept.write(s)
+        return self.stream.write(s)
+
+    def flush(self):
+        if self.stream is not None:
+            self.stream.flush()
+
+    def __getattr__(self, name):          # encoding, fileno, isatty... of the stream
+        return getattr(self.stream, name)
 
 
 def _call(what: str, path, fn):
     """fn() with the library's stdout and C stderr captured (see the module docstring)."""
-    said, c_said = io.StringIO(), []
-    try:
-        with contextlib.redirect_stdout(said), _c_stderr(c_said):
-            result = fn()
-    except Exception as exc:
-        words = _once(said.getvalue() + "".join(c_said), str(path))
-        note = f" (OpenEXR: {words})" if words else ""
-        raise ExrError(f"{path}: cannot {what} EXR file: {exc}{note}") from exc
-    words = _once(said.getvalue() + "".join(c_said), str(path))
+    with _LOCK:
+        out = sys.stdout = _ThreadStdout(sys.stdout)
+        c_said = ""
+        try:
+            with contextlib.suppress(AttributeError, ValueError, OSError):
+                sys.stderr.flush()
+            saved = os.dup(2)
+            try:
+                with tempfile.TemporaryFile() as tmp:
+                    os.dup2(tmp.fileno(), 2)
+                    try:
+                        result = fn()
+                    finally:
+                        os.dup2(saved, 2)
+                        tmp.seek(0)
+                        c_said = tmp.read().decode("utf-8", "replace")
+            finally:
+                os.close(saved)
+        except Exception as exc:
+            words = _once(out.kept.getvalue() + _theirs(c_said, str(path)), str(path))
+            note = f" (OpenEXR: {words})" if words else ""
+            raise ExrError(f"{path}: cannot {what} EXR file: {exc}{note}") from exc
+        finally:
+            if sys.stdout is out:
+                sys.stdout = out.stream
+            out.thread = None           # if someone swapped it meanwhile: every write goes through
+    words = _once(out.kept.getvalue() + _theirs(c_said, str(path)), str(path))
     if words:
         print(f"{path}: OpenEXR: {words}", file=sys.stderr)
     return result
+
+
+def _theirs(text: str, path: str) -> str:
+    """The library's lines of what fd 2 received during a call (it names the file, or the
+    temporary file written for it); another thread's lines go on to stderr."""
+    stem = str(Path(path).with_suffix(""))
+    mine, other = [], []
+    for line in text.splitlines(keepends=True):
+        (mine if line.startswith(stem) else other).append(line)
+    if other:
+        sys.stderr.write("".join(other))
+    return "".join(mine)
 
 
 def _once(text: str, path: str) -> str:

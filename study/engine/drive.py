@@ -27,15 +27,45 @@ class TechniqueError(ValueError):
     """A technique's code failed on a frame (study.engine.tasks reports it as the task's error)."""
 
 
+def _source(tech) -> str:
+    """'file:Class' of a technique: a user's file by its path, not its loader's module name."""
+    try:
+        src = inspect.getfile(type(tech))
+    except (TypeError, OSError):
+        src = type(tech).__module__
+    return f"{src}:{type(tech).__name__}"
+
+
 def _failure(scene: str, label: str, tech, step: Step, exc: Exception) -> str:
     where = traceback.extract_tb(exc.__traceback__)
     at = f" ({where[-1].filename}:{where[-1].lineno})" if where else ""
-    try:
-        src = inspect.getfile(type(tech))         # a user's file: its path, not its loader's module name
-    except (TypeError, OSError):
-        src = type(tech).__module__
-    return (f"technique {label!r} ({src}:{type(tech).__name__}) failed on scene {scene!r}, frame {step.frame} "
+    return (f"technique {label!r} ({_source(tech)}) failed on scene {scene!r}, frame {step.frame} "
             f"(step {step.k}): {type(exc).__name__}: {exc}{at}")
+
+
+def checked_output(img, scene: str, label: str, tech, step: Step, width: int, height: int,
+                   finite: bool = True) -> np.ndarray:
+    """A technique's output as float32 (H, W, 3) at the output size, or a TechniqueError naming the
+    column, its file and class, the scene and frame, and what was expected and got: an image of
+    another shape would be written past its end or judged against the wrong pixels. `finite`: also
+    refuse NaN/Inf (a judged frame; the metrics would spread them)."""
+    def bad(what: str):
+        return TechniqueError(f"technique {label!r} ({_source(tech)}) {what} on scene {scene!r}, frame {step.frame} "
+                              f"(step {step.k})")
+    try:
+        out = np.asarray(img, np.float32)
+    except (TypeError, ValueError) as exc:
+        raise bad(f"returned {type(img).__name__}, not an image ({exc})") from None
+    want = (height, width, 3)
+    if out.shape != want:
+        raise bad(f"returned an image of shape {out.shape}, expected {want} (height, width, RGB at the "
+                  f"output size)")
+    if finite and not np.isfinite(out).all():
+        n = int(out.size - np.count_nonzero(np.isfinite(out)))
+        # "produced NaN/Inf" first: the words a user greps the log for
+        raise TechniqueError(f"technique {label!r} produced NaN/Inf in {n} of {out.size} values ({_source(tech)}) "
+                             f"on scene {scene!r}, frame {step.frame} (step {step.k})")
+    return out
 
 
 def _shared(a: np.ndarray) -> np.ndarray:
@@ -151,11 +181,13 @@ def run_schedule(scene: ResolvedScene, width: int, height: int, schedule: list[S
                 except Exception as exc:      # the technique's own code (a user's file): named, no traceback
                     raise TechniqueError(_failure(scene.name, label, tech, step, exc)) from None
                 out[label]["nonfinite"] += int(getattr(tech, "last_nonfinite_count", 0))
-                if step.frame in judged[label] and step.keep:
+                shown = step.frame in judged[label] and step.keep
+                img = checked_output(img, scene.name, label, tech, step, width, height, finite=shown)
+                if shown:
                     if emit is None:
-                        out[label]["images"][step.frame] = np.asarray(img, np.float32)
+                        out[label]["images"][step.frame] = img
                     else:
-                        emit(label, step.frame, np.asarray(img, np.float32))
+                        emit(label, step.frame, img)
                     if stats:
                         out[label]["stats"][step.frame] = stats
     finally:

@@ -61,11 +61,15 @@ def metrics_task(ctx, scene_spec: str, w: int, h: int, items: list, ref_settings
 
 def locked_records(store, items: list, locks) -> tuple[dict, list]:
     """Lock every item's key (in one order everywhere: no deadlock) on the ExitStack `locks`;
-    returns (the records already complete, by key; the items still to compute)."""
-    for key in sorted(it["key"] for it in items):
+    returns (the records already complete, by key; the items still to compute, one per key: two
+    columns of one configuration share their run and metrics, judged once)."""
+    for key in sorted({it["key"] for it in items}):
         locks.enter_context(store.lock(key))
     records, todo = {}, []
+    firsts: dict = {}
     for it in items:
+        firsts.setdefault(it["key"], it)
+    for it in firsts.values():
         rec = store.done(Path(it["folder"]), it["key"])
         if rec is not None:
             records[it["key"]] = {"data": rec["data"], "computed": False}

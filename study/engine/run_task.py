@@ -7,7 +7,7 @@ from pathlib import Path
 
 from provenance import task_key
 from study.engine.drive import run_schedule
-from study.engine.tasks import Context, TaskError, _deterministic, _setup, display_of, load_scene
+from study.engine.tasks import Context, _deterministic, _setup, display_of, load_scene
 
 
 @_deterministic
@@ -33,7 +33,7 @@ def run_task(ctx: Context, scene_spec: str, w: int, h: int, protocol, configs: l
                 rec = store.done(Path(folders[c.label]), keys[c.label])
             if rec is not None:
                 out[c.label] = _run_summary(rec, computed=False)
-            else:
+            elif all(keys[t.label] != keys[c.label] for t in todo):   # two columns of one configuration: made once
                 todo.append(c)
         if todo:
             schedule = protocol.schedule(scene)
@@ -46,10 +46,7 @@ def run_task(ctx: Context, scene_spec: str, w: int, h: int, protocol, configs: l
             writers = {c.label: store.writer(Path(folders[c.label])) for c in todo}
             frames: dict = {c.label: [] for c in todo}
 
-            def emit(label, f, img):      # each judged frame goes to the cache as it is made
-                if not _finite(img):
-                    raise TaskError(f"scene {scene.name!r}, {protocol.name}: technique {label!r} produced "
-                                    f"NaN/Inf in frame(s) {[f]}")
+            def emit(label, f, img):      # each judged frame, checked (study.engine.drive), goes to the cache
                 writers[label].add(f"frame_{f:04d}.exr", img)
                 frames[label].append(f)
             fresh = run_schedule(scene, w, h, schedule, todo, displays,
@@ -62,12 +59,11 @@ def run_task(ctx: Context, scene_spec: str, w: int, h: int, protocol, configs: l
                         "frames": sorted(frames[c.label]), "stats": {str(f): v for f, v in r["stats"].items()}}
                 rec = writers[c.label].seal(keys[c.label], meta)
                 out[c.label] = _run_summary(rec, computed=True)
+            for c in configs:       # a column of the same configuration as one made here
+                if c.label not in out:
+                    made = next(t.label for t in todo if keys[t.label] == keys[c.label])
+                    out[c.label] = {**out[made], "computed": False}
     return {"kind": "run", "runs": out}
-
-
-def _finite(img) -> bool:
-    import numpy as np
-    return bool(np.all(np.isfinite(img)))
 
 
 def _run_summary(rec: dict, computed: bool) -> dict:

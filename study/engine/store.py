@@ -119,6 +119,12 @@ def _settled(st: os.stat_result) -> bool:
     return time.time_ns() - st.st_ctime_ns > _SETTLE_NS
 
 
+# (lock file, owner) -> how many times its owner (host, process, thread) entered it: re-entry from
+# the thread that holds a lock passes (a heartbeat keeps the file fresh, so waiting on it would hang)
+_HELD: dict[tuple[str, str], int] = {}
+_HELD_GUARD = threading.Lock()
+
+
 class Store:
     """Artefacts under `root`: folders of files with a sealed done record, and sealed JSON records."""
 
@@ -270,46 +276,83 @@ class Store:
         return record
 
     # -- one writer per key ------------------------------------------------------------------------
-    @contextlib.contextmanager
     def lock(self, key: str, stale_s: float = 60.0, poll_s: float = 0.2):
         """Exclusive work on `key` among every process sharing this cache (also over NFS: exclusive
         create is atomic there). The holder refreshes the file's time; a waiter breaks a lock
-        whose time stopped for `stale_s` (its holder died)."""
-        path = self.root / "locks" / f"{key}.lock"
-        path.parent.mkdir(parents=True, exist_ok=True)
-        me = f"{socket.gethostname()} {os.getpid()} {threading.get_ident()}"
-        while True:
-            try:
-                fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o666 & ~_umask())
-                os.write(fd, me.encode())
-                os.close(fd)
-                break
-            except FileExistsError:
-                try:
-                    owner = path.read_text()
-                    dead = _dead_owner(owner)
-                    if dead or time.time() - path.stat().st_mtime > stale_s:
-                        why = "its process is gone" if dead else f"no heartbeat for {stale_s:g} s"
-                        self.log(f"store: breaking the lock {path} of {owner!r}: {why}")
-                        if path.read_text() == owner:
-                            path.unlink(missing_ok=True)
-                        continue
-                except FileNotFoundError:
-                    continue
-                time.sleep(poll_s)
-        stop = threading.Event()
+        whose time stopped for `stale_s` (its holder died). Re-entrant: the thread that holds
+        `key` enters it again at once, and it is released when the outermost entry ends."""
+        return lock_file(self.root / "locks" / f"{key}.lock", self.log, stale_s, poll_s)
 
-        def heartbeat():
-            while not stop.wait(stale_s / 4):
-                with contextlib.suppress(OSError):
-                    os.utime(path)
-        beat = threading.Thread(target=heartbeat, daemon=True)
-        beat.start()
+
+class LockBusy(RuntimeError):
+    """A lock file another live process holds (`lock_file` with `wait=False`)."""
+
+    def __init__(self, path: Path, owner: str):
+        host, pid = (owner.split() + ["?", "?"])[:2]
+        super().__init__(f"{path} is held by process {pid} on host {host}")
+        self.path, self.owner, self.host, self.pid = path, owner, host, pid
+
+
+@contextlib.contextmanager
+def lock_file(path: Path, log=None, stale_s: float = 60.0, poll_s: float = 0.2, wait: bool = True):
+    """Hold the lock file `path` (exclusive create; its text names 'host pid thread'), refreshed by a
+    heartbeat; a lock whose process on this host is gone, or whose heartbeat stopped for `stale_s`,
+    is broken. The thread that holds it enters it again at once. `wait` False: raise LockBusy
+    instead of waiting for a live holder."""
+    log = log or (lambda msg: print(msg, file=sys.stderr))
+    path = Path(path)
+    me = f"{socket.gethostname()} {os.getpid()} {threading.get_ident()}"
+    held = (str(path.absolute()), me)
+    with _HELD_GUARD:
+        again = held in _HELD
+        if again:
+            _HELD[held] += 1
+    if again:           # this thread holds it already (two columns of one key): no wait on itself
         try:
             yield
         finally:
-            stop.set()
-            beat.join()
+            with _HELD_GUARD:
+                _HELD[held] -= 1
+        return
+    path.parent.mkdir(parents=True, exist_ok=True)
+    while True:
+        try:
+            fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o666 & ~_umask())
+            os.write(fd, me.encode())
+            os.close(fd)
+            break
+        except FileExistsError:
+            try:
+                owner = path.read_text()
+                dead = _dead_owner(owner)
+                if dead or time.time() - path.stat().st_mtime > stale_s:
+                    why = "its process is gone" if dead else f"no heartbeat for {stale_s:g} s"
+                    log(f"store: breaking the lock {path} of {owner!r}: {why}")
+                    if path.read_text() == owner:
+                        path.unlink(missing_ok=True)
+                    continue
+            except FileNotFoundError:
+                continue
+            if not wait:
+                raise LockBusy(path, owner) from None
+            time.sleep(poll_s)
+    stop = threading.Event()
+
+    def heartbeat():
+        while not stop.wait(stale_s / 4):
             with contextlib.suppress(OSError):
-                if path.read_text() == me:
-                    path.unlink()
+                os.utime(path)
+    beat = threading.Thread(target=heartbeat, daemon=True)
+    beat.start()
+    with _HELD_GUARD:
+        _HELD[held] = 1
+    try:
+        yield
+    finally:
+        with _HELD_GUARD:
+            del _HELD[held]
+        stop.set()
+        beat.join()
+        with contextlib.suppress(OSError):
+            if path.read_text() == me:
+                path.unlink()
