@@ -157,6 +157,30 @@ def test_suite_figures_refuse_what_they_cannot_judge():
         M.temporal_instability([a, a], [b])
 
 
+def test_all_metrics_checks_each_image_by_name():
+    a, b = _pair8(12, 12)
+    lin_a, lin_b = (a / 255.0) ** 2.2, (b / 255.0) ** 2.2
+    good = (lin_a, a / 255.0, a, lin_b, b / 255.0, b)
+    M.all_metrics(*good)
+    cases = [
+        (1, lin_a * 4, "the reference display image's values span [0, 4]"),   # linear passed as display
+        (4, b * 1.0, "technique display image's values span [0, 255]"),
+        (3, lin_b.astype(np.int32), "the technique image is int32; a linear float image expected"),
+        (0, lin_a[:11], "the reference image is 11x12x3, the technique 8-bit image 12x12x3"),
+        (5, b[:, :11], "the reference 8-bit image is 12x12x3, the technique 8-bit image 12x11x3"),
+    ]
+    for i, bad, words in cases:
+        args = list(good)
+        args[i] = bad
+        with pytest.raises(ValueError) as err:
+            M.all_metrics(*args)
+        assert words in str(err.value), str(err.value)
+        refs = [(*args[:3], {})]
+        with pytest.raises(ValueError) as err:
+            M.all_metrics_against(refs, *args[3:])
+        assert words in str(err.value), str(err.value)
+
+
 # -- documentation ----------------------------------------------------------------------------------
 
 MODULES = ("suite", "ssim", "flip", "filters", "uncertainty", "video", "checks")

@@ -419,34 +419,54 @@ def check_pair(ref, x, mode: str) -> tuple[np.ndarray, np.ndarray]:
     """
     if mode not in MODES:
         raise ValueError(f"FLIP mode must be 'LDR' (display images) or 'HDR' (linear), not {mode!r}")
-    metric = f"{mode}-FLIP"
     names = ("reference", "test image")
-    ref, x = (checks.as_array(metric, n, a) for n, a in zip(names, (ref, x)))
-    checks.rgb(metric, ref, x)
-    out = []
+    ref, x = (checks.as_array(f"{mode}-FLIP", n, a) for n, a in zip(names, (ref, x)))
+    checks.rgb(f"{mode}-FLIP", ref, x)
     if mode == "LDR":
-        checks.same_kind(metric, ref, x, LDR_EXPECTED)
-        for n, a in zip(names, (ref, x)):
-            if a.dtype == np.uint8:
-                out.append(a.astype(f32) / f32(255.0))
-                continue
-            if a.dtype.kind != "f":
-                raise ValueError(f"{metric}: the {n} is {a.dtype}; it expects {LDR_EXPECTED}")
-            lo, hi = checks.finite_span(metric, n, a)
-            if lo < 0 or hi > 1:
-                raise ValueError(f"{metric}: the {n}'s values span [{lo:.6g}, {hi:.6g}]; it expects {LDR_EXPECTED} "
-                                 f"(linear HDR images: mode 'HDR')")
-            out.append(a)
-    else:
-        for n, a in zip(names, (ref, x)):
-            if a.dtype.kind != "f":
-                raise ValueError(f"{metric}: the {n} is {a.dtype}; it expects {HDR_EXPECTED}")
-            lo, _ = checks.finite_span(metric, n, a)
-            if lo < 0:
-                raise ValueError(f"{metric}: the {n} holds negative values (down to {lo:.6g}); it expects "
-                                 f"{HDR_EXPECTED}")
-            out.append(a)
-    return out[0], out[1]
+        checks.same_kind(f"{mode}-FLIP", ref, x, LDR_EXPECTED)
+    return check_image(mode, names[0], ref), check_image(mode, names[1], x)
+
+
+def check_image(mode: str, name: str, a: np.ndarray) -> np.ndarray:
+    """One image FLIP can judge in `mode` (its dtype and values; shapes are `check_pair`'s).
+
+    Parameters
+    ----------
+    mode : {'LDR', 'HDR'}
+    name : str
+        What the image is (``"reference"``, ``"test image"``), for the message.
+    a : numpy.ndarray
+        The image.
+
+    Returns
+    -------
+    numpy.ndarray
+        `a` itself, or for a uint8 LDR image float32 value / 255.
+
+    Raises
+    ------
+    ValueError
+        As `check_pair`, for this image.
+    """
+    if mode not in MODES:
+        raise ValueError(f"FLIP mode must be 'LDR' (display images) or 'HDR' (linear), not {mode!r}")
+    metric = f"{mode}-FLIP"
+    if mode == "LDR":
+        if a.dtype == np.uint8:
+            return a.astype(f32) / f32(255.0)
+        if a.dtype.kind != "f":
+            raise ValueError(f"{metric}: the {name} is {a.dtype}; it expects {LDR_EXPECTED}")
+        lo, hi = checks.finite_span(metric, name, a)
+        if lo < 0 or hi > 1:
+            raise ValueError(f"{metric}: the {name}'s values span [{lo:.6g}, {hi:.6g}]; it expects {LDR_EXPECTED} "
+                             f"(linear HDR images: mode 'HDR')")
+        return a
+    if a.dtype.kind != "f":
+        raise ValueError(f"{metric}: the {name} is {a.dtype}; it expects {HDR_EXPECTED}")
+    lo, _ = checks.finite_span(metric, name, a)
+    if lo < 0:
+        raise ValueError(f"{metric}: the {name} holds negative values (down to {lo:.6g}); it expects {HDR_EXPECTED}")
+    return a
 
 
 def exposures(ref_lin: np.ndarray) -> tuple[f32, f32, int]:
@@ -546,6 +566,12 @@ def flip(ref: np.ndarray, x: np.ndarray, mode: str, ppd: float | None = None,
     flip-evaluator 1.7 (NVlabs/flip) for every constant and default.
     """
     ref, x = check_pair(ref, x, mode)
+    return _flip(ref, x, mode, ppd, memo, xmemo)
+
+
+def _flip(ref: np.ndarray, x: np.ndarray, mode: str, ppd, memo: dict | None, xmemo: dict | None):
+    """`flip` of a pair already checked (`check_pair`; study.metrics.suite checks each image once
+    per frame and each reference once, then judges it several times)."""
     c = consts(ppd)
     h, w = ref.shape[:2]
     lay = jf.Layout(h, w)

@@ -283,6 +283,43 @@ def relmse(ref: np.ndarray, x: np.ndarray) -> float:
     return out
 
 
+def _linear(name: str, a) -> np.ndarray:
+    a = checks.as_array("metrics", name, a)
+    if a.dtype.kind != "f":
+        raise ValueError(f"metrics: the {name} is {a.dtype}; a linear float image expected")
+    checks.finite_span("metrics", name, a)
+    return a
+
+
+def _technique(x_lin, x_disp, x8) -> tuple:
+    """The technique's images, checked once per frame (however many references judge them):
+    linear float and finite (or None), display as LDR-FLIP takes it, 8-bit uint8."""
+    if x_lin is not None:
+        x_lin = _linear("technique image", x_lin)
+    x_disp = F.check_image("LDR", "technique display image", checks.as_array("metrics", "technique display image", x_disp))
+    return x_lin, x_disp, checks.as_array("metrics", "technique 8-bit image", x8)
+
+
+def _reference(ref_lin, ref_disp, ref8, x: tuple, memo: dict | None) -> tuple:
+    """A reference's images checked as the technique's, and all six of one H x W x 3 shape. Its
+    values are checked once per memo: a memo belongs to one reference (study.metrics.flip.flip)."""
+    images = [checks.as_array("metrics", n, a) for n, a in (("reference image", ref_lin),
+              ("reference display image", ref_disp), ("reference 8-bit image", ref8))]
+    x_lin, x_disp, x8 = x
+    checks.rgb("metrics", images[2], x8, ("reference 8-bit image", "technique 8-bit image"))
+    for n, a in zip(("reference image", "reference display image", "technique image", "technique display image"),
+                    (*images[:2], x_lin, x_disp)):
+        if a is not None:
+            checks.same_shape("metrics", a, x8, (n, "technique 8-bit image"))
+    checks.same_kind("LDR-FLIP", images[1], x_disp, F.LDR_EXPECTED)
+    if memo is None or ("checked",) not in memo or images[1].dtype == np.uint8:
+        images[0] = _linear("reference image", images[0])
+        images[1] = F.check_image("LDR", "reference display image", images[1])
+        if memo is not None:
+            memo[("checked",)] = True
+    return tuple(images)
+
+
 def all_metrics(ref_lin: np.ndarray, ref_disp: np.ndarray, ref8: np.ndarray,
                 x_lin: np.ndarray | None, x_disp: np.ndarray, x8: np.ndarray,
                 impl: str = "drjit", want_maps: bool = True, memo: dict | None = None) -> tuple[dict, dict]:
@@ -328,21 +365,25 @@ def all_metrics(ref_lin: np.ndarray, ref_disp: np.ndarray, ref8: np.ndarray,
     Wang et al. 2004 (SSIM); Andersson et al. 2020 (FLIP) and 2021 (HDR-FLIP); the volume SSIM
     of Oliveros 2018, Improved Sampling for Temporal Anti-Aliasing, Lund University.
     """
-    for name, a in (("reference", ref_lin), ("technique", x_lin), ("technique display", x_disp)):
-        if a is not None:
-            checks.finite_span("metrics", f"{name} image", np.asarray(a))
+    drjit = _impl(impl) == "drjit"
+    x = _technique(x_lin, x_disp, x8)
+    ref_lin, ref_disp, ref8 = _reference(ref_lin, ref_disp, ref8, x, memo)
+    x_lin, x_disp, x8 = x
     m = mse(ref8, x8)
-    if _impl(impl) == "drjit":
-            s, smap, s_vol = S.ssim_both(ref8, x8)
+    if drjit:
+        s, smap, s_vol = S.ssim_both(ref8, x8)
+        fl, fmap = F._flip(ref_disp, x_disp, "LDR", None, memo, None)
     else:
         s, smap = ssim(ref8, x8, impl)
         s_vol = ssim_volume(ref8, x8)
-    fl, fmap = flip(ref_disp, x_disp, "LDR", impl, memo)
+        fl, fmap = flip(ref_disp, x_disp, "LDR", impl)
     out = {"mse": m, "rmsd": math.sqrt(m), "psnr": psnr_from_mse(m), "snr": snr(ref8, x8), "ssim": s,
            "ssim_volume": s_vol, "flip_ldr": fl, "flip_hdr": None, "relmse_hdr": None}
     maps = {"ssim": smap, "flip_ldr": fmap}
     if x_lin is not None:
-        out["flip_hdr"], maps["flip_hdr"] = flip(np.maximum(ref_lin, 0), np.maximum(x_lin, 0), "HDR", impl, memo)
+        # clipped at 0 (HDR-FLIP's input); finite, checked above
+        r0, x0 = np.maximum(ref_lin, 0), np.maximum(x_lin, 0)
+        out["flip_hdr"], maps["flip_hdr"] = F._flip(r0, x0, "HDR", None, memo, None) if drjit else flip(r0, x0, "HDR", impl)
         out["relmse_hdr"] = relmse(ref_lin, x_lin)
     return out, (maps if want_maps else {})
 
@@ -379,22 +420,22 @@ def all_metrics_against(refs: list, x_lin: np.ndarray | None, x_disp: np.ndarray
     ----------
     As `all_metrics`.
     """
-    for name, a in [("technique", x_lin), ("technique display", x_disp)] + [("reference", r[0]) for r in refs]:
-        if a is not None:
-            checks.finite_span("metrics", f"{name} image", np.asarray(a))
+    x = _technique(x_lin, x_disp, x8)
+    refs = [(*_reference(*r[:3], x, r[3]), r[3]) for r in refs]
+    x_lin, x_disp, x8 = x
     want_maps = want_maps or [True] * len(refs)
     ssims = S.ssim_against([r[2] for r in refs], x8, [r[3] for r in refs])
     xmemo: dict = {}
     out = []
     for (ref_lin, ref_disp, ref8, memo), (s, smap, s_vol), keep in zip(refs, ssims, want_maps):
         m = mse(ref8, x8)
-        fl, fmap = F.flip(ref_disp, x_disp, "LDR", memo=memo, xmemo=xmemo)
+        fl, fmap = F._flip(ref_disp, x_disp, "LDR", None, memo, xmemo)
         figs = {"mse": m, "rmsd": math.sqrt(m), "psnr": psnr_from_mse(m), "snr": snr(ref8, x8), "ssim": s,
                 "ssim_volume": s_vol, "flip_ldr": fl, "flip_hdr": None, "relmse_hdr": None}
         maps = {"ssim": smap, "flip_ldr": fmap}
         if x_lin is not None and hdr:
-            figs["flip_hdr"], maps["flip_hdr"] = F.flip(np.maximum(ref_lin, 0), np.maximum(x_lin, 0), "HDR",
-                                                        memo=memo, xmemo=xmemo)
+            figs["flip_hdr"], maps["flip_hdr"] = F._flip(np.maximum(ref_lin, 0), np.maximum(x_lin, 0), "HDR",
+                                                         None, memo, xmemo)
             figs["relmse_hdr"] = relmse(ref_lin, x_lin)
         out.append((figs, maps if keep else {}))
     return out
