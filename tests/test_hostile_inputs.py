@@ -162,3 +162,95 @@ def test_bench_as_the_readme_gives_it_times_every_technique_upscalers_at_their_s
         assert math.isfinite(ms) and ms > 0 and math.isfinite(res["bandwidth_floor_ms"][name]), name
     # an upscaler at 0.5 reads a quarter of the inputs it reads at 1
     assert res["bandwidth_floor_ms"]["fsr2 ×0.5"] < res["bandwidth_floor_ms"]["fsr2 ×1"]
+
+
+def _listener(reply: bytes | None):
+    """A one-connection TCP listener on 127.0.0.1 (not Dask) that sends `reply` (None: nothing)
+    and closes; it stops by itself after 20 s. Returns its port."""
+    import socket
+    import threading
+    srv = socket.socket()
+    srv.bind(("127.0.0.1", 0))
+    srv.listen(1)
+    srv.settimeout(20)
+
+    def serve():
+        try:
+            conn, _ = srv.accept()
+            with conn:
+                if reply is not None:
+                    conn.sendall(reply)
+                conn.settimeout(3)
+                try:
+                    conn.recv(1024)
+                except OSError:
+                    pass
+        except OSError:
+            pass
+        finally:
+            srv.close()
+    threading.Thread(target=serve, daemon=True).start()
+    return srv.getsockname()[1]
+
+
+def _closed_port():
+    import socket
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()                      # nothing listens there now
+    return port
+
+
+@pytest.mark.parametrize("address, words", [
+    ("127.0.0.1:8786", ["not an address of the form tcp://HOST:PORT"]),
+    ("tcp://127.0.0.1", ["not an address of the form tcp://HOST:PORT"]),
+    ("tcp://127.0.0.1:99999", ["not an address of the form tcp://HOST:PORT"]),
+    ("http://127.0.0.1:8786", ["not an address of the form tcp://HOST:PORT"]),
+    (lambda: f"tcp://127.0.0.1:{_closed_port()}", ["cannot connect (Connection refused)"]),
+    (lambda: f"tcp://127.0.0.1:{_listener(b'HTTP/1.1 400 Bad Request' + bytes(32))}",
+     ["the listener there is not a Dask scheduler"]),
+    (lambda: f"tcp://127.0.0.1:{_listener(None)}", ["no answer within 1 s"]),
+])
+def test_a_bad_scheduler_exits_2_quickly_before_any_output(address, words, tmp_path, monkeypatch):
+    import time
+    monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setenv("TAA_STUDY_CONNECT_TIMEOUT", "1")
+    address = address() if callable(address) else address
+    out = tmp_path / "out"
+    t0 = time.perf_counter()
+    r = CliRunner().invoke(main, ["run", "--scenes", "pipe", "--techniques", "noaa", "--no-agreement",
+                                  "--scheduler", address, "--out", str(out)])
+    took = time.perf_counter() - t0
+    assert r.exit_code == 2, r.output
+    assert f"--scheduler {address}: " in r.output, r.output
+    for w in words:
+        assert w in r.output, (w, r.output)
+    assert "Traceback" not in r.output and took < 10, took
+    assert not out.exists() and not (tmp_path / "cache").exists()
+
+
+def test_more_workers_than_cores_are_capped_with_a_note(monkeypatch):
+    from study.commands import common
+    from study.engine import execute
+    monkeypatch.setattr(execute, "cores", lambda: 2)
+    notes = []
+    monkeypatch.setattr(common.click, "echo", lambda m, err=False: notes.append(m))
+    ex = common._executor(64, None, None)
+    assert ex.kind == "local" and ex.workers == 2
+    assert notes == ["note: --workers 64: this machine has 2 cores; using 2 worker processes"]
+    monkeypatch.setenv("TAA_STUDY_WORKERS", "9")
+    assert common._executor(None, None, None).workers == 2
+    assert "TAA_STUDY_WORKERS 9" in notes[-1]
+    assert common._executor(2, None, None).workers == 2 and len(notes) == 2
+
+
+def test_a_real_dask_scheduler_passes_the_check(monkeypatch):
+    """The check's handshake probe accepts a Dask scheduler (a local one, no workers)."""
+    from distributed import LocalCluster
+
+    from study.commands.common import _check_scheduler
+    monkeypatch.setenv("TAA_STUDY_CONNECT_TIMEOUT", "10")
+    with LocalCluster(n_workers=0, processes=False, protocol="tcp://", host="127.0.0.1",
+                      dashboard_address=None) as cluster:
+        _check_scheduler(cluster.scheduler_address)        # returns (no SystemExit)

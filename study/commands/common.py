@@ -37,15 +37,33 @@ def _cache_folder() -> Path:
     return _writable_folder(default_cache_dir(), "the cache folder (TAA_STUDY_CACHE)")
 
 
-def _study_out(path) -> Path:
-    """A study's output folder: new, empty, or one a study wrote (it has this tool's manifest).
-    A folder of other files is refused: a study removes the files of its previous manifest that it
-    no longer writes, and must not be pointed at someone's own files."""
-    path = Path(path)
-    if path.is_dir() and any(path.iterdir()) and not (path / "manifest.json").is_file():
-        _fail(f"--out {path}: the folder holds files but no manifest.json of this tool; "
-              "give a new or empty folder, or one a study wrote")
-    return _writable_folder(path, "--out")
+def _study_out(path):
+    """A study's output folder (study.reporting.out_folder.OutFolder): checked, held by this study
+    until the command ends (another study's run exits 2 naming it), made only once its report is
+    written; exit 2 saying why it cannot be used."""
+    from study.reporting.out_folder import OutFolder, OutFolderError
+    folder = OutFolder(path)
+    try:
+        folder.__enter__()
+    except OutFolderError as exc:
+        _fail(str(exc))
+    ctx = click.get_current_context(silent=True)
+    release = lambda: folder.__exit__(None, None, None)      # noqa: E731
+    if ctx is not None:
+        ctx.call_on_close(release)        # also when a later _fail exits
+    else:
+        import atexit
+        atexit.register(release)
+    return folder
+
+
+def _write_report(folder, write) -> None:
+    """`write(where)` writes the study's report through `folder` (OutFolder.write), or exit 2."""
+    from study.reporting.out_folder import OutFolderError
+    try:
+        folder.write(write)
+    except OutFolderError as exc:
+        _fail(str(exc))
 
 
 def _scene_and_size(name: str, profile: str, width: int | None, height: int | None):
@@ -80,21 +98,82 @@ def _scene_list(ctx, param, value):
 def _executor(workers, threads, scheduler):
     """--workers N: a LocalCluster of N processes (1: in-process); neither it nor --scheduler: the
     default, TAA_STUDY_WORKERS when set, else auto (study.engine.execute)."""
-    from study.engine.execute import Executor
+    from study.engine.execute import Executor, cores
     if scheduler and workers:
         _fail("give either --workers N (a local cluster) or --scheduler ADDRESS, not both")
     if scheduler:
+        _check_scheduler(scheduler)
         return Executor("scheduler", address=scheduler, threads=threads)
+    what = "--workers"
     if workers is None and os.environ.get("TAA_STUDY_WORKERS", "").strip():
         raw = os.environ["TAA_STUDY_WORKERS"].strip()
         if not raw.isdigit() or int(raw) < 1:
             _fail(f"TAA_STUDY_WORKERS={raw!r}: give a whole number of worker processes, 1 or more")
-        workers = int(raw)
+        workers, what = int(raw), "TAA_STUDY_WORKERS"
     if workers is None:
         return Executor.auto(threads)
+    if workers > cores():
+        # each worker is a process with its own Dr.Jit, EGL context and scene copies: more of them
+        # than cores only adds memory and start-up (64 on 2 cores: 4.7 GB and 80 s instead of 7 s)
+        click.echo(f"note: {what} {workers}: this machine has {cores()} cores; using {cores()} worker "
+                   "processes", err=True)
+        workers = cores()
     if workers > 1:
         return Executor("local", workers=workers, threads=threads)
     return Executor("in-process", threads=threads)
+
+
+CONNECT_TIMEOUT_S = 10.0      # TAA_STUDY_CONNECT_TIMEOUT overrides it
+_HANDSHAKE_MAX = 1 << 20      # a Dask handshake is a few hundred bytes
+
+
+def _check_scheduler(address: str) -> None:
+    """Exit 2 unless `address` (tcp://HOST:PORT) answers as a Dask scheduler within the connect
+    timeout: the format first, then a TCP connection, the first 8 bytes a Dask server sends (its
+    handshake's length: a listener of another kind is refused before distributed reads it and tries
+    to allocate what its bytes say), then a Dask client connection. Before any output is made."""
+    import socket
+    import struct
+    import urllib.parse
+    raw = os.environ.get("TAA_STUDY_CONNECT_TIMEOUT", "").strip()
+    try:
+        timeout = float(raw) if raw else CONNECT_TIMEOUT_S
+    except ValueError:
+        timeout = -1.0
+    if not 0 < timeout <= 600:
+        _fail(f"TAA_STUDY_CONNECT_TIMEOUT={raw!r}: give seconds, more than 0 and at most 600")
+    where = f"--scheduler {address}"
+    try:
+        url = urllib.parse.urlsplit(address)
+        host, port = url.hostname, url.port
+    except ValueError as exc:           # a port that is not a number or out of range
+        _fail(f"{where}: not an address of the form tcp://HOST:PORT ({exc})")
+    if url.scheme != "tcp" or not host or port is None or port == 0 or url.path not in ("", "/") \
+            or url.query or url.fragment:
+        _fail(f"{where}: not an address of the form tcp://HOST:PORT (e.g. tcp://10.0.0.5:8786)")
+    try:
+        with socket.create_connection((host, port), timeout=timeout) as sock:
+            sock.settimeout(timeout)
+            head = b""
+            while len(head) < 8:
+                chunk = sock.recv(8 - len(head))
+                if not chunk:
+                    break
+                head += chunk
+    except socket.timeout:
+        _fail(f"{where}: no answer within {timeout:g} s (TAA_STUDY_CONNECT_TIMEOUT); is the scheduler running "
+              "and reachable?")
+    except OSError as exc:
+        _fail(f"{where}: cannot connect ({exc.strerror or exc})")
+    if len(head) < 8 or not 0 < struct.unpack("<Q", head)[0] <= _HANDSHAKE_MAX:
+        _fail(f"{where}: the listener there is not a Dask scheduler (no Dask handshake)")
+    try:
+        from distributed import Client
+        client = Client(address, timeout=f"{timeout}s")
+    except Exception as exc:            # distributed raises OSError, TimeoutError, CommClosedError ...
+        _fail(f"{where}: cannot connect as a Dask client ({type(exc).__name__}: {exc})")
+    else:
+        client.close()
 
 
 def _strict_json(obj) -> str:
@@ -104,14 +183,15 @@ def _strict_json(obj) -> str:
 
 EXECUTION_OPTIONS = [
     click.option("--workers", type=click.IntRange(min=1), default=None,
-                 help="Run the tasks on a local Dask cluster of N worker processes (1: in this process). "
-                      "Default: one per core, at most 4, for plans of 8 tasks or more (TAA_STUDY_WORKERS "
-                      "sets it)."),
+                 help="Run the tasks on a local Dask cluster of N worker processes (1: in this process; "
+                      "at most one per core). Default: one per core, at most 4, for plans of 8 tasks or more "
+                      "(TAA_STUDY_WORKERS sets it)."),
     click.option("--threads", type=click.IntRange(min=1), default=None,
                  help="Dr.Jit threads per process (default: the cores shared out among the workers)."),
     click.option("--scheduler", default=None, metavar="tcp://HOST:PORT",
                  help="Run the tasks on an existing Dask scheduler (the cache must be on a filesystem every "
-                      "worker sees)."),
+                      "worker sees); checked before anything is written, within TAA_STUDY_CONNECT_TIMEOUT "
+                      "seconds (default 10)."),
 ]
 
 
@@ -180,21 +260,38 @@ def _checkout_commit() -> str | None:
     return head.stdout.strip() + ("+modified" if dirty.returncode == 0 and dirty.stdout.strip() else "")
 
 
-def run_study(profile, names, configs, out_dir, no_agreement, executor, sweep=True, own_columns=True):
+# The exit status of a study stopped at its --stop-after time (0 finished, 1 a gate failed, 2 bad input).
+STOPPED_EXIT = 3
+
+
+def _stopped(exc) -> None:
+    """Exit STOPPED_EXIT after a study stopped at its deadline (study.engine.runner.StudyStopped)."""
+    click.echo(f"taa-study: {exc}", err=True)
+    click.echo("taa-study: stopped at the --stop-after time, unfinished: no tables or report written; the "
+               "finished tasks are in the cache. To resume, run the same command again (with a new "
+               "--stop-after, or without one to finish).", err=True)
+    sys.exit(STOPPED_EXIT)
+
+
+def run_study(profile, names, configs, out_dir, no_agreement, executor, sweep=True, own_columns=True,
+              deadline=None):
     """The study end to end: plan and execute its tasks (study.engine.runner), then write its tables, figures
-    and report (study.reporting.report.write_study). `profile`: a Profile (study file). Returns the folder."""
+    and report (study.reporting.report.write_study). `profile`: a Profile (study file). `deadline`: no
+    task starts after it (study.engine.execute.now()); past it an unfinished study exits STOPPED_EXIT,
+    writing nothing. Returns the folder."""
     import time as _time
 
     from study.config.profile import SPARSE_SWEEP, sharpen_sweep_configs
-    from study.engine.runner import Study
+    from study.engine.runner import Study, StudyStopped
     from study.engine.tasks import TaskError
     from study.reporting.report import write_study
 
     start = _time.perf_counter()
     _load_scenes(names)
-    out = _study_out(out_dir or profile.out or f"out/{profile.name}")
+    folder = _study_out(out_dir or profile.out or f"out/{profile.name}")
+    out = folder.path
     _cache_folder()
-    study = Study(profile, executor=executor)
+    study = Study(profile, executor=executor, deadline=deadline)
     sweep_cfg = SPARSE_SWEEP if sweep else ()
     # the sharpen sweep goes with the profile's own columns (not with --techniques)
     sharpen = sharpen_sweep_configs(profile.sharpen_sweep) if own_columns else ()
@@ -202,12 +299,14 @@ def run_study(profile, names, configs, out_dir, no_agreement, executor, sweep=Tr
         res = study.run(names, configs, agreement=not no_agreement, sweep=sweep_cfg, sharpen=sharpen)
     except TaskError as exc:
         _fail(str(exc))
+    except StudyStopped as exc:
+        _stopped(exc)
     from study.config.profile import thesis_roles
     summary = {**res.stats, "profile": study.profile.name, "scenes": names,
                "techniques": [c.label for c in configs], "roles": thesis_roles(configs),
                "executor": executor.describe(), "commit": _checkout_commit(),
                "date": datetime.now(timezone.utc).isoformat(timespec="seconds")}
-    write_study(out, res, configs, summary, start)
+    _write_report(folder, lambda where: write_study(where, res, configs, summary, start))
     from study.engine.store import Store
     Store(study.cache.root).save_hashes()        # the files the report checked
     click.echo((out / "tables" / "headline.md").read_text())
@@ -221,5 +320,10 @@ def run_study(profile, names, configs, out_dir, no_agreement, executor, sweep=Tr
     return out
 
 
-PROFILE_OPTION = click.option("--profile", type=click.Choice(["quick", "full"]), default="quick", show_default=True,
+def _builtin_profiles() -> list[str]:
+    """The built-in study files' names (study.config.studyfile.builtin_profiles, without its imports)."""
+    return sorted(p.stem for p in (Path(__file__).resolve().parents[1] / "config" / "profiles").glob("*.toml"))
+
+
+PROFILE_OPTION = click.option("--profile", type=click.Choice(_builtin_profiles()), default="quick", show_default=True,
                               help="A built-in study file (study/profiles/); STUDY_FILE replaces it.")
