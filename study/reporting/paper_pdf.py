@@ -14,7 +14,8 @@
         figures, the speed-against-error and convergence plots) and generated/appendix.tex (every
         other table and figure);
     build_pdf(paper_dir) -> paper_dir/main.pdf      (latexmk with bibtex, or pdflatex/bibtex/pdflatex x2);
-    contents(paper_dir) -> {"pages", "body_pages", "labels", "graphics", "overfull", "citations"}
+    contents(paper_dir) -> {"pages", "body_pages", "labels", "sections", "graphics", "overfull",
+                            "undefined_citations", "bibliography"}
         read back from .aux and .log;
     text_sizes(pdf) -> {"min_pt", "pages_under", ...}   every character's size and position
         (pdfminer.six, the test extra): the smallest text and any past the page's margins.
@@ -176,8 +177,8 @@ def build_pdf(paper_dir: Path, timeout: float = 600) -> Path:
 
 
 def contents(paper_dir: Path) -> dict:
-    """What the last build holds: page count, the body's pages (before the appendix), labels (from
-    main.aux), graphics files read, overfull boxes, and citations LaTeX could not resolve and the
+    """What the last build holds: page count, the body's pages (before the appendix), labels and
+    sections with their pages (from main.aux), graphics files read, overfull boxes, and citations LaTeX could not resolve and the
     entries bibtex listed (from main.log and main.bbl)."""
     paper_dir = Path(paper_dir)
     aux = (paper_dir / "main.aux").read_text(errors="replace")
@@ -190,6 +191,9 @@ def contents(paper_dir: Path) -> dict:
     return {"pages": int(pages.group(1)) if pages else None,
             "body_pages": int(appendix.group(1)) - 1 if appendix else None,
             "labels": re.findall(r"\\newlabel\{([^}]*)\}", aux),
+            # the table of contents' sections: (title, page)
+            "sections": [(t.strip(), int(p)) for t, p in re.findall(
+                r"\\contentsline \{section\}\{(?:\\numberline \{[^}]*\})?([^{}]*)\}\{(\d+)\}", aux)],
             "graphics": sorted(set(re.findall(r"<(generated/figures/[^>,]+?\.png)", log.replace("\n", "")))),
             "overfull": len(re.findall(r"^Overfull \\hbox", log, re.M)),
             "undefined_citations": sorted(set(re.findall(r"Citation `([^']+)' .*undefined", log))),
