@@ -13,6 +13,13 @@ the bound, seconds, mean/max spp, 99.9th percentile and max SE in LSB, the pixel
 the mean of held-out samples (`taa_held_out`, references.estimates: part of the key too). Files are written atomically (references/exr.py), so an
 interrupted render leaves nothing; a file that fails to read, lacks its key or holds NaN/Inf is
 reported, removed and rendered again.
+
+With `reuse` (references.reuse), frame t's reference keeps frame t - 1's estimate (at the same
+settings) where no moving object nor its shadow reaches: its key then hashes frame t - 1's key
+(`reuse_from`, itself chained back to frame `reuse_since`, the last frame rendered whole), so no
+reference is ever read for a chain it was not derived from; each pixel's smallest and largest
+sample (`sample_lo.R/G/B`, `sample_hi.R/G/B`: what the next frame's unseen-feature floor reads)
+and which pixels were kept (`reused`) are stored with it.
 """
 from __future__ import annotations
 
@@ -31,7 +38,7 @@ from .exr import read_exr, write_exr
 from .render import Reference, render_reference
 
 _CODE_FILES = ("shading/surface.py", "shading/frame.py", "references/render.py", "references/estimates.py",
-               "references/settings.py",
+               "references/settings.py", "references/reuse.py",
                "references/tracer.py", "references/mitsuba_scene.py", "display/__init__.py")
 
 
@@ -47,14 +54,22 @@ def code_version(root: Path | None = None) -> str:
     return h.hexdigest()[:12]
 
 
-def reference_key(scene: ResolvedScene, t: int, width: int, height: int, **settings) -> str:
-    """The content key of one reference: scene content, frame, camera, resolution, settings, code."""
+def reference_key(scene: ResolvedScene, t: int, width: int, height: int, *, code: str | None = None,
+                  **settings) -> str:
+    """The content key of one reference: scene content, frame, camera, resolution, settings, code
+    (a reused-reference frame's settings hold `reuse_from`, the key of the frame it keeps pixels of)."""
     cam = scene.camera(t, width, height)
     blob = json.dumps({"scene": scene.content_hash, "frame": t, "width": width, "height": height,
                        "camera": np.round(cam.to_world, 12).tolist(), "fov": cam.yfov_deg,
                        "near": cam.near, "far": cam.far, "settings": settings,
-                       "code": code_version()}, sort_keys=True)
+                       "code": code or code_version()}, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()[:24]
+
+
+def reuses(scene: ResolvedScene, t: int, width: int, height: int, reuse: bool, reuse_since: int) -> bool:
+    """Whether frame t's reference keeps pixels of frame t - 1's (references.reuse.global_change)."""
+    from .reuse import global_change
+    return bool(reuse) and t > max(int(reuse_since), 0) and global_change(scene, t, width, height) is None
 
 
 class ReferenceCache:
@@ -62,8 +77,18 @@ class ReferenceCache:
         self.root = Path(root) if root is not None else default_cache_dir()
         self.log = log or (lambda msg: print(msg, file=sys.stderr))
 
-    def key(self, scene: ResolvedScene, t: int, width: int, height: int, **settings) -> str:
-        return reference_key(scene, t, width, height, **settings)
+    def key(self, scene: ResolvedScene, t: int, width: int, height: int, *, reuse: bool = False,
+            reuse_since: int = 0, **settings) -> str:
+        """The cache key; a frame that reuses frame t - 1's pixels hashes that frame's key, and so
+        on back to `reuse_since` (or the last frame that reuses nothing)."""
+        code = code_version()
+        first = t
+        while reuses(scene, first, width, height, reuse, reuse_since):
+            first -= 1
+        key = reference_key(scene, first, width, height, code=code, **settings)
+        for s in range(first + 1, t + 1):
+            key = reference_key(scene, s, width, height, code=code, **settings, reuse_from=key)
+        return key
 
     def path(self, scene: ResolvedScene, key: str) -> Path:
         return self.root / "references" / scene.name / f"{key}.exr"
@@ -82,11 +107,17 @@ class ReferenceCache:
             if img.shape != shape or not all(np.all(np.isfinite(x)) for x in (img, se, dse, half)):
                 raise ValueError("wrong shape or NaN/Inf pixels")
             history = [tuple(x) for x in json.loads(h.get("taa_convergence", "[]"))]
+            extra = {}
+            if "sample_lo.R" in ch:
+                extra = {f"sample_{n}": np.stack([ch[f"sample_{n}.{c}"] for c in "RGB"], -1).astype(np.float32)
+                         for n in ("lo", "hi")}
+            if "reused" in ch:
+                extra["reused"] = ch["reused"] > 0.5
             return Reference(img, se, int(h["taa_spp"]), int(h["taa_passes"]), float(h["taa_seconds"]),
                              float(h["taa_noise_psnr_db"]), key, spp_map=spp, display_stderr=dse,
                              bound_lsb=float(h["taa_bound_lsb"]), rounds=int(h["taa_rounds"]), _history=history,
                              display_floor=floor, half_delta=half, spp_needed=int(h.get("taa_spp_needed", 0)),
-                             held_out=h.get("taa_held_out") == "1")
+                             held_out=h.get("taa_held_out") == "1", **extra)
         except Exception as exc:
             self.log(f"reference cache: {path} is corrupt ({exc}); removing it and rendering again")
             path.unlink(missing_ok=True)
@@ -101,7 +132,8 @@ class ReferenceCache:
                   "taa_se_p999_lsb": float(ref.se_p999_lsb), "taa_se_max_lsb": float(ref.se_max_lsb),
                   "taa_over_bound": int(ref.over_bound), "taa_floor_bound": int(ref.floor_bound),
                   "taa_spp_needed": int(ref.spp_needed), "taa_held_out": "1" if ref.held_out else "0",
-                  "taa_code": code_version(),
+                  "taa_code": code_version(), "taa_traced": int(ref.traced),
+                  "taa_reused": int(0 if ref.reused is None else ref.reused.sum()),
                   "taa_convergence": json.dumps([[int(round(a)), round(float(b), 4), round(float(c), 3),
                                                   round(float(d), 3)] for a, b, c, d in ref.noise_history])}
         chans = {"RGB": ref.image, "spp": ref.spp_map}
@@ -110,28 +142,42 @@ class ReferenceCache:
             chans[f"display_stderr.{c}"] = ref.display_stderr[..., k]
             chans[f"display_floor.{c}"] = ref.display_floor[..., k]
             chans[f"half_delta.{c}"] = ref.half_delta[..., k]
+            if ref.sample_lo is not None:
+                chans[f"sample_lo.{c}"], chans[f"sample_hi.{c}"] = ref.sample_lo[..., k], ref.sample_hi[..., k]
+        if ref.reused is not None:
+            chans["reused"] = ref.reused.astype(np.float32)
         write_exr(path, chans, header)
 
     def has(self, scene: ResolvedScene, t: int, width: int, height: int, *, se_bound_lsb=S.SE_BOUND_LSB,
-            target_noise_db=S.TARGET_NOISE_DB, spp_per_pass=2, held_out=False) -> bool:
+            target_noise_db=S.TARGET_NOISE_DB, spp_per_pass=2, held_out=False, reuse=False, reuse_since=0) -> bool:
         """Whether the reference `get` would return is in the cache (not verified)."""
         return self.path(scene, self.key(scene, t, width, height, bound_lsb=se_bound_lsb, target=target_noise_db,
-                                         spp_per_pass=spp_per_pass, held_out=bool(held_out))).exists()
+                                         spp_per_pass=spp_per_pass, held_out=bool(held_out), reuse=reuse,
+                                         reuse_since=reuse_since)).exists()
 
     def get(self, scene: ResolvedScene, t: int, width: int, height: int, *, se_bound_lsb=S.SE_BOUND_LSB,
-            target_noise_db=S.TARGET_NOISE_DB, spp_per_pass=2, held_out=False, progress=None) -> tuple[Reference, bool]:
+            target_noise_db=S.TARGET_NOISE_DB, spp_per_pass=2, held_out=False, reuse=False, reuse_since=0,
+            progress=None) -> tuple[Reference, bool]:
         """(reference, was_cached): every pixel's display-domain SE <= se_bound_lsb (8-bit LSB)
-        and the mean noise >= target_noise_db, or the pixels that hit the sample cap counted."""
+        and the mean noise >= target_noise_db, or the pixels that hit the sample cap counted.
+        `reuse`: keep frame t - 1's estimate (at these settings, got from here: rendered first if
+        missing) where references.reuse finds nothing changes, back to frame `reuse_since`."""
         key = self.key(scene, t, width, height, bound_lsb=se_bound_lsb, target=target_noise_db,
-                       spp_per_pass=spp_per_pass, held_out=bool(held_out))
+                       spp_per_pass=spp_per_pass, held_out=bool(held_out), reuse=reuse, reuse_since=reuse_since)
         path = self.path(scene, key)
         if path.exists():
             ref = self._read(path, key, (height, width, 3))
             if ref is not None:
                 return ref, True
+        prev = None
+        if reuses(scene, t, width, height, reuse, reuse_since):
+            prev = self.get(scene, t - 1, width, height, se_bound_lsb=se_bound_lsb, target_noise_db=target_noise_db,
+                            spp_per_pass=spp_per_pass, held_out=held_out, reuse=reuse, reuse_since=reuse_since)[0]
+            if prev.sample_lo is None:       # written before extremes were stored: cannot be a source
+                prev = None
         ref = render_reference(scene, t, width, height, se_bound_lsb=se_bound_lsb,
                                target_noise_db=target_noise_db, spp_per_pass=spp_per_pass, held_out=bool(held_out),
-                               progress=progress)
+                               progress=progress, reuse_from=prev)
         ref.key = key
         self._write(path, ref, scene, t)
         return ref, False

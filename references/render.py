@@ -86,6 +86,7 @@ _MARGIN = 1.2            # extra samples planned beyond the predicted count
 _GROWTH = 4              # at most this many times a pixel's samples after one round
 _FIRST_MIN = 2           # samples per replicate, at least, in a pixel's first set (64 with 32)
 _FIRST_MAX = 32          # and at most, as the pilot's own noise estimate is rough
+_DRIFT = 0.02            # a reused pixel's display SE may grow this much with the frame's transform
 
 
 class ReferenceError(RuntimeError):
@@ -109,6 +110,9 @@ class Reference:
     half_delta: np.ndarray | None = None       # (H, W, 3) linear: half A = image + delta, B = image - delta
     spp_needed: int = 0     # what the worst pixel over the bound at the cap would take (0: none)
     held_out: bool = False  # the value is the mean of samples no stopping decision saw
+    sample_lo: np.ndarray | None = None   # (H, W, 3) each pixel's smallest sample (what a later frame's floor reads)
+    sample_hi: np.ndarray | None = None   # and largest
+    reused: np.ndarray | None = None      # (H, W) bool: the previous frame's estimate (references.reuse)
     _history: list = field(default_factory=list, repr=False)
 
     @property
@@ -131,6 +135,12 @@ class Reference:
     @property
     def spp_mean(self) -> float:
         return float(self.spp_map.mean())
+
+    @property
+    def traced(self) -> int:
+        """Samples traced for this frame: the reused pixels' were traced for an earlier one."""
+        spp = self.spp_map.astype(np.int64)
+        return int(spp.sum() if self.reused is None else spp[~self.reused].sum())
 
     @property
     def spp_max(self) -> int:
@@ -160,10 +170,14 @@ class Reference:
 def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
                      se_bound_lsb: float = S.SE_BOUND_LSB, target_noise_db: float = S.TARGET_NOISE_DB, spp_per_pass: int = 4,
                      min_passes: int = 4, replicates: int = 32, max_spp: int = 1 << 16, seed: int = 0,
-                     held_out: bool = False, progress: Callable[[int, float], None] | None = None) -> Reference:
+                     held_out: bool = False, progress: Callable[[int, float], None] | None = None,
+                     reuse_from: Reference | None = None) -> Reference:
     """Reference of frame t: a pilot of `min_passes` sets of `spp_per_pass` at every pixel, then
     rounds of `replicates` independent sets per pixel that needs them (see the module docstring);
-    `held_out`: the value is the mean of samples no decision saw (references.estimates)."""
+    `held_out`: the value is the mean of samples no decision saw (references.estimates).
+    `reuse_from`: frame t - 1's reference, rendered with the same settings: the pixels that
+    references.reuse finds no moving object nor shadow reaches keep its estimate, unless it missed
+    the bound (it hit the sample cap, or its display SE under this frame's transform is over)."""
     if min_passes < 2 or replicates < 2 or min_passes % 2 or replicates % 2:
         raise ReferenceError(f"min_passes and replicates must be even and >= 2 (the noise is estimated "
                              f"from them, and the reference is split into two halves), got {min_passes}, {replicates}")
@@ -187,9 +201,63 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
     else:
         geo = frame_geometry(scene, t)
     tracer = _PixelTracer(scene, cam, path, mscene, integ, geo)
-    return converge(tracer, width, height, f"scene {scene.name!r} frame {t}", se_bound_lsb=se_bound_lsb,
-                    target_noise_db=target_noise_db, spp_per_pass=spp_per_pass, min_passes=min_passes,
-                    replicates=replicates, max_spp=max_spp, seed=seed, held_out=held_out, progress=progress)
+    # a frame that keeps an earlier frame's pixels draws scrambles of its own, not that frame's
+    kw = dict(se_bound_lsb=se_bound_lsb, target_noise_db=target_noise_db, spp_per_pass=spp_per_pass,
+              min_passes=min_passes, replicates=replicates, max_spp=max_spp, held_out=held_out,
+              seed=seed if reuse_from is None else seed + 7919 * (t + 1),
+              progress=progress)
+    what = f"scene {scene.name!r} frame {t}"
+    reuse = _reuse_of(scene, t, width, height, reuse_from, se_bound_lsb, held_out,
+                      min_passes * spp_per_pass + replicates * max((max_spp - min_passes * spp_per_pass) // replicates, 1)) \
+        if reuse_from is not None else None
+    while True:
+        ref = converge(tracer, width, height, what, reuse=reuse, **kw)
+        if reuse is None:
+            return ref
+        # The kept pixels met the bound under frame t - 1's display transform; this frame's (from
+        # its own mean image) may be steeper at their values. Held out, a pixel's reported SE is
+        # its value's own samples' spread: choosing pixels by it (or by their value) would select
+        # on the value, so where the slope grew past _DRIFT anywhere the frame is rendered whole;
+        # otherwise the pixels over the bound are rendered afresh.
+        if held_out:
+            if np.any(reuse["slope"] > 1 + _DRIFT):
+                reuse = None
+                continue
+            return ref
+        over = (ref.display_stderr.max(axis=-1).ravel() > se_bound_lsb * LSB * (1 + _DRIFT)) & reuse["mask"]
+        if not over.any():
+            return ref
+        reuse["mask"] = reuse["mask"] & ~over
+
+
+def _reuse_of(scene: ResolvedScene, t: int, width: int, height: int, prev: Reference, se_bound_lsb: float,
+              held_out: bool, cap_spp: int) -> dict | None:
+    """converge's `reuse` from frame t - 1's reference: the pixels references.reuse keeps whose
+    estimate met the bound by its own decisions (under the cap; display SE within the bound)."""
+    from .reuse import reuse_mask
+    if prev.image.shape != (height, width, 3) or prev.sample_lo is None or prev.half_delta is None:
+        raise ReferenceError(f"scene {scene.name!r} frame {t}: the previous frame's reference has another "
+                             f"size or keeps no sample extremes or halves; it cannot be reused")
+    if bool(prev.held_out) != bool(held_out) or abs(prev.bound_lsb - se_bound_lsb) > 1e-9 * se_bound_lsb:
+        raise ReferenceError(f"scene {scene.name!r} frame {t}: the previous frame's reference was rendered "
+                             f"with other settings (bound {prev.bound_lsb}, held_out {prev.held_out})")
+    mask = reuse_mask(scene, t, width, height)
+    if mask is None:
+        return None
+    # the cap: a pixel that stopped there missed the bound; one under it met it by its deciding
+    # samples, so (held out) keeping it selects nothing on the value it reports
+    met = prev.spp_map < cap_spp
+    if not held_out:
+        met &= prev.se_lsb <= se_bound_lsb * (1 + 1e-5)
+    mask = (mask & met).ravel()
+    if not mask.any():
+        return None
+    flat = lambda a: np.asarray(a).reshape(width * height, *np.asarray(a).shape[2:])  # noqa: E731
+    return {"mask": mask, "image": flat(prev.image).astype(np.float64), "stderr": flat(prev.stderr),
+            "dse": flat(prev.display_stderr).astype(np.float64), "floor": flat(prev.display_floor).astype(np.float64),
+            "half": flat(prev.half_delta).astype(np.float64), "spp": flat(prev.spp_map).astype(np.int64),
+            "lo": flat(prev.sample_lo).astype(np.float64), "hi": flat(prev.sample_hi).astype(np.float64),
+            "disp": DisplayTransform.from_reference(prev.image)}
 
 
 def _deciding_runs(sets: int, deciding: int) -> tuple[int, int]:
@@ -201,17 +269,21 @@ def _deciding_runs(sets: int, deciding: int) -> tuple[int, int]:
 
 def converge(tracer, width: int, height: int, what: str, *, se_bound_lsb: float, target_noise_db: float,
              spp_per_pass: int, min_passes: int, replicates: int, max_spp: int, seed: int, held_out: bool,
-             progress=None) -> Reference:
+             progress=None, reuse: dict | None = None) -> Reference:
     """The adaptive loop over any tracer whose `chunked(pix, r, a, rng, groups)` yields (pixels,
     their r set sums (n, r, 3), the smallest and largest sample of each of `groups` runs of
-    consecutive sets (n, groups, 3) each)."""
+    consecutive sets (n, groups, 3) each). `reuse`: pixels (`mask`, (npix,) bool) whose estimate is
+    given, not traced: their `image`, `stderr`, `dse` and `floor` (display SE and its floor under the
+    transform `disp`), `half`, `spp`, `lo` and `hi` ((npix, ...) each, see render_reference)."""
     npix, r = width * height, replicates
     start = time.perf_counter()
     history = []
+    kept = np.zeros(npix, bool) if reuse is None else np.asarray(reuse["mask"], bool)
+    active = ~kept
 
     def record(dse):
         db = E.noise_db(dse)
-        spp = float(est.spp.mean())
+        spp = float((est.spp * active).mean())
         history.append((spp, time.perf_counter() - start, db, float(dse.max() / LSB)))
         if progress:
             progress(int(round(spp)), db)
@@ -223,7 +295,13 @@ def converge(tracer, width: int, height: int, what: str, *, se_bound_lsb: float,
     lo_all, hi_all = np.empty((npix, 3)), np.empty((npix, 3))  # every sample's (the reported floor)
     # the deciding sets lead (references.estimates): the extremes come in runs of them
     pg, dg = _deciding_runs(min_passes, min_passes // 2 if held_out else min_passes)
-    for g, sums, glo, ghi in tracer.chunked(np.arange(npix), min_passes, spp_per_pass,
+    if kept.any():
+        # a given pixel enters as passes that agree (no spread, never refined); its neighbours'
+        # floors read its own samples' extremes
+        pilot[kept] = reuse["image"][kept][:, None, :]
+        lo[kept] = lo_all[kept] = reuse["lo"][kept]
+        hi[kept] = hi_all[kept] = reuse["hi"][kept]
+    for g, sums, glo, ghi in tracer.chunked(np.flatnonzero(active), min_passes, spp_per_pass,
                                             np.random.default_rng([seed, 8]), pg):
         if not np.all(np.isfinite(sums)):
             raise ReferenceError(f"{what}: the pilot produced NaN/Inf")
@@ -248,7 +326,13 @@ def converge(tracer, width: int, height: int, what: str, *, se_bound_lsb: float,
         return np.flatnonzero(np.any(E.window(hi.reshape(height, width, 3), np.maximum) >
                                      E.window(lo.reshape(height, width, 3), np.minimum), axis=-1).ravel())
 
+    def pin():
+        # the given pixels' display SE is their own, their floor in it
+        if kept.any():
+            dse_s[kept], floor_d[kept] = reuse["dse"][kept], 0.0
+
     update_floor(contrast(lo, hi))
+    pin()
     dse = np.maximum(dse_s, floor_d)
     record(dse)
 
@@ -259,7 +343,7 @@ def converge(tracer, width: int, height: int, what: str, *, se_bound_lsb: float,
     while True:
         worst_s, worst_f = dse_s.max(axis=-1), floor_d.max(axis=-1)
         worst = np.maximum(worst_s, worst_f)
-        over = (worst > bound) & (est.m < cap)
+        over = (worst > bound) & (est.m < cap) & active
         spp = est.spp_estimate
         need = E.samples_needed(spp, worst_s, worst_f, bound) * _MARGIN
         want = (np.ceil(need) - spp) / est.re      # per replicate
@@ -269,7 +353,7 @@ def converge(tracer, width: int, height: int, what: str, *, se_bound_lsb: float,
             over[est.varies] = True
         if not over.any():
             mse = float(np.mean(dse ** 2))
-            improvable = np.any((worst > 0) & (est.m < cap))
+            improvable = np.any((worst > 0) & (est.m < cap) & active)
             if mse <= target_mse or not improvable or tightened >= 20:
                 break
             # The mean-noise target binds: tighten the per-pixel bound by what it misses.
@@ -299,6 +383,7 @@ def converge(tracer, width: int, height: int, what: str, *, se_bound_lsb: float,
         touched = np.zeros(npix, bool)
         touched[pix] = True
         update_floor(np.flatnonzero(E.dilate(touched.reshape(height, width)).ravel()))
+        pin()
         now = DisplayTransform.from_reference(est.dmean.reshape(height, width, 3))
         if now != disp:                   # (to 3 digits) every pixel's display error moves with it
             disp = now
@@ -306,6 +391,7 @@ def converge(tracer, width: int, height: int, what: str, *, se_bound_lsb: float,
             dse_s[:] = 0.0
             dse_s[noisy] = E.display_se(disp, est.dmean[noisy], est.dcov[noisy])
             update_floor(contrast(lo, hi))
+        pin()
         dse = np.maximum(dse_s, floor_d)
         rounds += 1
         record(dse)
@@ -323,17 +409,36 @@ def converge(tracer, width: int, height: int, what: str, *, se_bound_lsb: float,
     whi = E.window(hi_all.reshape(height, width, 3), np.maximum).reshape(npix, 3)[where]
     floor_d[where], floor_l[where] = E.unseen_floor(disp, mean[where], wlo, whi, est.spp_estimate[where])
     dse = np.maximum(dse, floor_d)
-    spp_map = est.spp.reshape(height, width)
+    lin_se = np.maximum(E.linear_se(cov), floor_l)
+    spp_all = est.spp.copy()
+    half = est.half_delta(mean)
+    if kept.any():
+        k = kept
+        mean[k], lin_se[k], half[k], spp_all[k] = reuse["image"][k], reuse["stderr"][k], reuse["half"][k], reuse["spp"][k]
+        # the display SE of a given pixel under this frame's transform: its own, times how much
+        # the transform's slope at its value moved
+        diag = np.zeros((int(k.sum()), 3, 3))
+        diag[:, [0, 1, 2], [0, 1, 2]] = reuse["stderr"][k].astype(np.float64) ** 2
+        was = E.display_se(reuse["disp"], mean[k], diag)
+        now_ = E.display_se(disp, mean[k], diag)
+        ratio = np.divide(now_, was, out=np.ones_like(was), where=was > 0)
+        dse[k], floor_d[k] = reuse["dse"][k] * ratio, reuse["floor"][k] * ratio
+        reuse["slope"] = np.ones(npix)
+        reuse["slope"][k] = ratio.max(axis=-1)
+        spread[k] = dse[k]
+    spp_map = spp_all.reshape(height, width)
     b0 = se_bound_lsb * LSB
-    missed = dse.max(axis=-1) > b0 * (1 + 1e-5)
+    missed = (dse.max(axis=-1) > b0 * (1 + 1e-5)) & active
     needed = (E.samples_needed(est.spp_estimate, spread.max(axis=-1), floor_d.max(axis=-1), b0)[missed]
               * (est.spp[missed] / est.spp_estimate[missed]))
-    lin_se = np.maximum(E.linear_se(cov), floor_l)
     return Reference(mean.reshape(height, width, 3).astype(np.float32),
                      lin_se.reshape(height, width, 3).astype(np.float32),
                      int(round(spp_map.mean())), min_passes, time.perf_counter() - start, E.noise_db(dse),
                      spp_map=spp_map.astype(np.int32), display_stderr=dse.reshape(height, width, 3).astype(np.float32),
                      bound_lsb=float(se_bound_lsb), rounds=rounds, _history=history,
                      display_floor=floor_d.reshape(height, width, 3).astype(np.float32),
-                     half_delta=est.half_delta(mean).reshape(height, width, 3).astype(np.float32),
-                     spp_needed=int(np.ceil(needed.max())) if len(needed) else 0, held_out=held_out)
+                     half_delta=half.reshape(height, width, 3).astype(np.float32),
+                     spp_needed=int(np.ceil(needed.max())) if len(needed) else 0, held_out=held_out,
+                     sample_lo=lo_all.reshape(height, width, 3).astype(np.float32),
+                     sample_hi=hi_all.reshape(height, width, 3).astype(np.float32),
+                     reused=kept.reshape(height, width).copy() if reuse is not None else None)
