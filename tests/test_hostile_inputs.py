@@ -254,3 +254,28 @@ def test_a_real_dask_scheduler_passes_the_check(monkeypatch):
     with LocalCluster(n_workers=0, processes=False, protocol="tcp://", host="127.0.0.1",
                       dashboard_address=None) as cluster:
         _check_scheduler(cluster.scheduler_address)        # returns (no SystemExit)
+
+
+def test_a_scene_warning_is_one_plain_line(tmp_path, monkeypatch):
+    """A SceneWarning through the CLI: 'warning: <message>', not Python's file:line header and a
+    line of this project's source."""
+    monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))
+
+    def degenerate(doc, folder):
+        import numpy as np
+        data = bytearray((folder / "hand.bin").read_bytes())
+        data[148:160] = np.array([2, -1, 0], np.float32).tobytes()   # a zero-area triangle
+        (folder / "hand.bin").write_bytes(bytes(data))
+    f = _gltf_with(tmp_path, degenerate)
+    r = CliRunner().invoke(main, ["estimate", "--scenes", f])
+    lines = [ln for ln in r.stderr.splitlines() if "zero-area" in ln]
+    assert len(lines) == 1 and lines[0].startswith("warning: ") and "1 zero-area triangles (dropped)" in lines[0], \
+        r.stderr
+    assert "SceneWarning" not in r.stderr and "warnings.warn" not in r.stderr and ".py:" not in r.stderr, r.stderr
+
+
+def test_a_technique_file_that_is_not_python_is_named():
+    r = CliRunner().invoke(main, ["run", "--scenes", "pipe", "--techniques", "file.txt:Class"])
+    assert r.exit_code == 2, r.output
+    assert "a technique file must be a Python file" in r.output and "'file.txt'" in r.output, r.output
+    assert "is not field=value" not in r.output

@@ -76,7 +76,27 @@ def _scene_and_size(name: str, profile: str, width: int | None, height: int | No
     return scene, (w if width is None else width), (h if height is None else height)
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+class _Group(click.Group):
+    """The command group: a command runs with scene warnings shown as one plain line."""
+
+    def invoke(self, ctx):
+        import warnings
+        shown = warnings.showwarning
+
+        def show(message, category, filename, lineno, file=None, line=None):
+            from scenes import SceneWarning
+            if issubclass(category, SceneWarning):
+                # Python's default shows the warning's source file and line of this project's code:
+                # the user wants what is wrong with their scene, not our source
+                click.echo(f"warning: {message}", err=True)
+            else:
+                shown(message, category, filename, lineno, file, line)
+        with warnings.catch_warnings():
+            warnings.showwarning = show
+            return super().invoke(ctx)
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
 def main():
     """Reference-and-comparison study of temporal anti-aliasing."""
 

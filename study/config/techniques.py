@@ -60,6 +60,10 @@ class TechniqueConfig:
         overrides = []
         for item in filter(None, params.split(",")):
             k, eq, v = item.partition("=")
+            if not eq and (Path(name).suffix or "/" in name or Path(name).exists()):
+                # 'file.txt:Class': a file meant, not a registered name with overrides
+                raise ValueError(f"technique {text!r}: a technique file must be a Python file "
+                                 f"(path/to/file.py:ClassName), got {name!r}")
             if not eq:
                 raise ValueError(f"technique {text!r}: override {item!r} is not field=value")
             try:
