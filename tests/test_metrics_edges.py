@@ -162,6 +162,11 @@ def test_all_metrics_checks_each_image_by_name():
     lin_a, lin_b = (a / 255.0) ** 2.2, (b / 255.0) ** 2.2
     good = (lin_a, a / 255.0, a, lin_b, b / 255.0, b)
     M.all_metrics(*good)
+    # 8-bit display images are read as value / 255 (as FLIP reads them); an 8-bit one against a float one is refused
+    f32 = [v.astype(np.float32) / np.float32(255) for v in (a, b)]
+    assert M.all_metrics(lin_a, a, a, lin_b, b, b)[0] == M.all_metrics(lin_a, f32[0], a, lin_b, f32[1], b)[0]
+    with pytest.raises(ValueError, match="the reference is uint8 and the test image float64"):
+        M.all_metrics(lin_a, a, a, lin_b, b / 255.0, b)
     cases = [
         (1, lin_a * 4, "the reference display image's values span [0, 4]"),   # linear passed as display
         (4, b * 1.0, "technique display image's values span [0, 255]"),

@@ -293,11 +293,13 @@ def _linear(name: str, a) -> np.ndarray:
 
 def _technique(x_lin, x_disp, x8) -> tuple:
     """The technique's images, checked once per frame (however many references judge them):
-    linear float and finite (or None), display as LDR-FLIP takes it, 8-bit uint8."""
+    linear float and finite (or None), display as LDR-FLIP takes it, 8-bit uint8; and the display
+    image as given (its dtype is compared with the reference's)."""
     if x_lin is not None:
         x_lin = _linear("technique image", x_lin)
-    x_disp = F.check_image("LDR", "technique display image", checks.as_array("metrics", "technique display image", x_disp))
-    return x_lin, x_disp, checks.as_array("metrics", "technique 8-bit image", x8)
+    given = checks.as_array("metrics", "technique display image", x_disp)
+    x_disp = F.check_image("LDR", "technique display image", given)
+    return x_lin, x_disp, checks.as_array("metrics", "technique 8-bit image", x8), given
 
 
 def _reference(ref_lin, ref_disp, ref8, x: tuple, memo: dict | None) -> tuple:
@@ -305,13 +307,13 @@ def _reference(ref_lin, ref_disp, ref8, x: tuple, memo: dict | None) -> tuple:
     values are checked once per memo: a memo belongs to one reference (study.metrics.flip.flip)."""
     images = [checks.as_array("metrics", n, a) for n, a in (("reference image", ref_lin),
               ("reference display image", ref_disp), ("reference 8-bit image", ref8))]
-    x_lin, x_disp, x8 = x
+    x_lin, x_disp, x8, given = x
     checks.rgb("metrics", images[2], x8, ("reference 8-bit image", "technique 8-bit image"))
     for n, a in zip(("reference image", "reference display image", "technique image", "technique display image"),
                     (*images[:2], x_lin, x_disp)):
         if a is not None:
             checks.same_shape("metrics", a, x8, (n, "technique 8-bit image"))
-    checks.same_kind("LDR-FLIP", images[1], x_disp, F.LDR_EXPECTED)
+    checks.same_kind("LDR-FLIP", images[1], given, F.LDR_EXPECTED)
     if memo is None or ("checked",) not in memo or images[1].dtype == np.uint8:
         images[0] = _linear("reference image", images[0])
         images[1] = F.check_image("LDR", "reference display image", images[1])
@@ -368,7 +370,7 @@ def all_metrics(ref_lin: np.ndarray, ref_disp: np.ndarray, ref8: np.ndarray,
     drjit = _impl(impl) == "drjit"
     x = _technique(x_lin, x_disp, x8)
     ref_lin, ref_disp, ref8 = _reference(ref_lin, ref_disp, ref8, x, memo)
-    x_lin, x_disp, x8 = x
+    x_lin, x_disp, x8 = x[:3]
     m = mse(ref8, x8)
     if drjit:
         s, smap, s_vol = S.ssim_both(ref8, x8)
@@ -422,7 +424,7 @@ def all_metrics_against(refs: list, x_lin: np.ndarray | None, x_disp: np.ndarray
     """
     x = _technique(x_lin, x_disp, x8)
     refs = [(*_reference(*r[:3], x, r[3]), r[3]) for r in refs]
-    x_lin, x_disp, x8 = x
+    x_lin, x_disp, x8 = x[:3]
     want_maps = want_maps or [True] * len(refs)
     ssims = S.ssim_against([r[2] for r in refs], x8, [r[3] for r in refs])
     xmemo: dict = {}
