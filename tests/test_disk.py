@@ -53,7 +53,7 @@ def test_a_study_short_of_disk_prunes_its_largest_runs_and_makes_them_again_with
     assert not plan.tasks and set(need["tests"]) >= {("tiny_moving", "static"), ("tiny_moving", "ghosting")}
     big = max(need["tests"], key=lambda k: need["tests"][k][0] - need["tests"][k][1])
     tests = need["tests"]
-    floor = need["references"] + need["maps"] + sum(k for _, k in tests.values()) + D.MARGIN + D.IN_FLIGHT * need["run"]
+    floor = need["references"] + need["maps"] + sum(k for _, k in tests.values()) + D.margin(need) + D.IN_FLIGHT * need["run"]
     room = sum(w - k for w, k in tests.values()) - (tests[big][0] - tests[big][1])   # all but the largest
     monkeypatch.setattr(D, "free_bytes", lambda folder: floor + room)
     s3, _, logs = _study(tmp_path / "short", scenes)
@@ -70,6 +70,6 @@ def test_a_study_short_of_disk_prunes_its_largest_runs_and_makes_them_again_with
     # nothing fits: a named error before any task (no reference rendered)
     monkeypatch.setattr(D, "free_bytes", lambda folder: floor - 1)
     s4, _, _ = _study(tmp_path / "full", scenes)
-    with pytest.raises(D.DiskError, match=r"the study needs about .* GB in the cache folder .*full"):
+    with pytest.raises(D.DiskError, match=r"the study needs about .* [KMG]B in the cache folder .*full"):
         s4.run(scenes, configs, agreement=False)
     assert not list((tmp_path / "full").rglob("*.exr"))

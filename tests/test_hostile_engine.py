@@ -151,3 +151,171 @@ def test_a_bad_output_is_refused_before_it_is_stored(tmp_path, out, words):
         assert w in err, (w, err)
     assert not list((tmp_path / "cache" / "runs").rglob("done.json"))      # nothing sealed
     assert not (tmp_path / "out").exists()                           # no empty output folder either
+
+
+# -- the output folder ----------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def cached(tmp_path_factory):
+    """A tiny study's cache, computed once: the tests below only write its report."""
+    root = tmp_path_factory.mktemp("cached")
+    study = _study(root, ["A=noaa"])
+    r = _cli(root, ["run", study, "--out", root / "first"])
+    assert r.returncode == 0, r.stderr[-3000:]
+    return root, study
+
+
+def _run_in_process(root, study, out, monkeypatch):
+    from click.testing import CliRunner
+    from study.commands.cli import main
+    monkeypatch.setenv("TAA_STUDY_CACHE", str(root / "cache"))
+    return CliRunner().invoke(main, ["run", str(study), "--out", str(out)])
+
+
+def _leftovers(out):
+    return sorted(p.name for p in out.parent.iterdir() if p.name.startswith(f".{out.name}."))
+
+
+@pytest.mark.long(seconds=10)
+def test_an_interrupted_first_report_leaves_nothing_the_rerun_refuses(cached, tmp_path, monkeypatch):
+    """SIGTERM while the first report was written left tables and images without manifest.json,
+    and the next run refused the folder as someone else's."""
+    import signal
+    import subprocess
+    root, study = cached
+    out = tmp_path / "out"
+    code = ("import os, signal, sys\nimport study.reporting.report as R\n"
+            "real = R.Report.finish\n"
+            "def finish(self, summary):\n    os.kill(os.getpid(), signal.SIGTERM)\n"
+            "R.Report.finish = finish\nfrom study.commands.cli import main\n"
+            f"main(['run', {str(study)!r}, '--out', {str(out)!r}])\n")
+    env = {**os.environ, "TAA_STUDY_CACHE": str(root / "cache"), "TAA_STUDY_WORKERS": "1"}
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300,
+                       cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    assert p.returncode == -signal.SIGTERM, p.stderr[-3000:]
+    assert not out.exists()                                            # half a report is not the folder
+    r = _run_in_process(root, study, out, monkeypatch)
+    assert r.exit_code == 0, r.output
+    assert (out / "manifest.json").is_file() and (out / "tables" / "headline.csv").is_file()
+    assert _leftovers(out) == []                                       # no staging folder, no lock
+
+    # a first report interrupted while it was moved into an existing (empty) folder
+    out2 = tmp_path / "out2"
+    (out2 / "tables").mkdir(parents=True)
+    (out2 / "tables" / "half.csv").write_text("x")
+    (out2 / ".taa-study-incomplete").write_text("")
+    r = _run_in_process(root, study, out2, monkeypatch)
+    assert r.exit_code == 0, r.output
+    assert (out2 / "manifest.json").is_file() and not (out2 / "tables" / "half.csv").exists()
+    assert not (out2 / ".taa-study-incomplete").exists()
+
+
+@pytest.mark.long(seconds=10)
+def test_a_full_disk_while_writing_the_report_exits_2_and_keeps_the_folder_whole(cached, tmp_path, monkeypatch):
+    """ENOSPC in the output folder was a traceback with exit 1."""
+    import errno
+
+    import provenance.files as PF
+    import study.reporting.report as R
+    root, study = cached
+    out = tmp_path / "out"
+    real = PF.write_bytes_atomic
+    calls = []
+
+    def full(path, data):
+        calls.append(path)
+        if len(calls) > 3:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+        return real(path, data)
+    with monkeypatch.context() as mp:
+        mp.setattr(PF, "write_bytes_atomic", full)
+        mp.setattr(R, "write_bytes_atomic", full)
+        r = _run_in_process(root, study, out, monkeypatch)
+    assert r.exit_code == 2, r.output
+    assert "Traceback" not in r.output
+    (err,) = [line for line in r.output.splitlines() if line.startswith("error:")]
+    assert f"--out {out}: cannot write the report (" in err and "No space left on device" in err, err
+    assert "MB free on its disk); nothing was written" in err, err
+    assert not out.exists() and _leftovers(out) == []
+
+    # a second report: the first one's manifest stands, and lists files that are all there
+    assert _run_in_process(root, study, out, monkeypatch).exit_code == 0
+    manifest = (out / "manifest.json").read_bytes()
+    calls.clear()
+    with monkeypatch.context() as mp:
+        (out / "tables" / "headline.csv").unlink()                      # something to write again
+        calls.extend([None] * 4)                                         # full from the first write
+        mp.setattr(PF, "write_bytes_atomic", full)
+        mp.setattr(R, "write_bytes_atomic", full)
+        r = _run_in_process(root, study, out, monkeypatch)
+    assert r.exit_code == 2 and "its previous report's manifest still stands" in r.output, r.output
+    assert (out / "manifest.json").read_bytes() == manifest and _leftovers(out) == []
+
+
+def test_a_second_study_on_a_folder_another_is_writing_exits_2_naming_both(tmp_path, monkeypatch):
+    """Two studies into one --out at once both exited 0, one's manifest beside the other's tables."""
+    import socket
+    out = tmp_path / "out"
+    lock = tmp_path / ".out.taa-study-lock"
+    lock.write_text(f"{socket.gethostname()} {os.getppid()} 1")        # a live process of this host
+    study = _study(tmp_path, ["A=noaa"])
+    r = _run_in_process(tmp_path, study, out, monkeypatch)
+    assert r.exit_code == 2, r.output
+    assert (f"--out {out}: another study is writing this folder (process {os.getppid()} on host "
+            f"{socket.gethostname()}") in r.output, r.output
+    assert not out.exists() and not (tmp_path / "cache").exists()      # refused before any work
+    assert lock.read_text().split()[1] == str(os.getppid())            # the other's lock stays
+
+
+# -- figures and the disk -------------------------------------------------------------------------
+def test_figures_json_is_strict_and_keeps_an_infinite_figure(tmp_path):
+    """An exact image's PSNR is +inf: figures.json held a bare Infinity, which no strict JSON
+    parser (a browser's JSON.parse, jq) reads."""
+    import json
+    import math
+    from types import SimpleNamespace
+
+    from study.reporting.encode import from_strict
+    from study.reporting.report import Report
+    r = SimpleNamespace(scene="s", width=4, height=2, reference_bound_lsb=0.5, artefacts={"A": {"metrics_key": "k"}},
+                        per_frame={"A": {3: {"psnr": math.inf, "mse": 0.0, "ssim": 1.0, "relmse_hdr": math.nan}}},
+                        uncertainty={"A": {3: {"psnr": math.inf}}}, temporal={"A": -math.inf}, temporal_u={},
+                        jod={}, jod_u={})
+    res = SimpleNamespace(statics=[r], ghosts={}, sweeps=[], tolerances={"psnr_db": 0.05}, precision={})
+    rep = Report(tmp_path)
+    rep.precision(res)
+    text = (tmp_path / "tables" / "figures.json").read_text()
+    doc = json.loads(text, parse_constant=lambda c: pytest.fail(f"non-strict JSON constant {c}"))
+    got = from_strict(doc)["tests"][0]["techniques"]["A"]
+    assert got["frames"]["3"]["figures"] == {"psnr": math.inf, "mse": 0.0, "ssim": 1.0, "relmse_hdr": None}
+    assert got["frames"]["3"]["uncertainty"]["psnr"] == math.inf and got["temporal"] == -math.inf
+
+
+def test_no_column_is_best_among_equals():
+    """Every column at PSNR ∞ (or two identical configurations): 'best' named the first column."""
+    import math
+
+    from study.reporting.tables import best_of, thesis_layout
+    assert best_of("psnr", {"A": math.inf, "B": math.inf}) == "all tied"
+    assert best_of("psnr", {"A": 30.0, "B": 31.0, "C": 31.0}) == "B = C"
+    assert best_of("mse", {"A": 2.0, "B": 1.0, "C": None}) == "B"
+    assert best_of("psnr", {"A": math.nan, "B": None}) is None
+    t = thesis_layout("t", {"A": {"psnr": math.inf, "ms": 1.0}, "Improved": {"psnr": math.inf, "ms": 2.0}},
+                      ["psnr", "ms"], "Improved")
+    assert t.rows == [["PSNR (dB)", "∞", "∞", "all tied", "best"], ["ms / frame", "1.00", "2.00", "A", "+1"]]
+
+
+def test_the_spare_disk_margin_scales_with_the_study():
+    """A fixed 2 GB margin refused a 250 KB study on a disk with 1 GB free."""
+    from pathlib import Path
+
+    from study.engine import disk as D
+    tiny = {"references": 150_000, "maps": 50_000, "tests": {("s", "static"): (50_000, 50_000)}, "run": 0}
+    assert D.margin(tiny) == 64 * 2 ** 20
+    assert D.fit(tiny, 2 ** 30, False, Path("/c")) == {("s", "static")}            # 1 GB free: it fits
+    with pytest.raises(D.DiskError) as e:
+        D.fit(tiny, 10 * 2 ** 20, False, Path("/c"))
+    assert ("the study needs about 64.2 MB in the cache folder /c (references 146.5 KB, the runs' kept frames and "
+            "maps 97.7 KB, 4 runs being judged 0.0 KB, 64.0 MB spare: 25% of these, 64.0 MB to 2.0 GB) and "
+            "10.0 MB is free") in str(e.value), str(e.value)
+    big = {"references": 40 * 2 ** 30, "maps": 0, "tests": {}, "run": 0}
+    assert D.margin(big) == 2 * 2 ** 30

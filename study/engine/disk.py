@@ -19,7 +19,9 @@ from study.engine.tasks import TaskError
 # 5.9-6.4), a reference (its image, halves' difference, standard errors, floor and spp: 10-15.3),
 # a frame's maps (SSIM, FLIP LDR and HDR)
 FRAME_BYTES, REFERENCE_BYTES, MAPS_BYTES = 7, 16, 12
-MARGIN = 2 * 2 ** 30          # left free for everything else (logs, the report, the OS)
+# left free for everything else (logs, the report, the OS): a quarter of what the plan keeps,
+# between 64 MB and 2 GB (a fixed 2 GB refused a 250 KB study on a small disk)
+MARGIN, MARGIN_MIN, MARGIN_SHARE = 2 * 2 ** 30, 64 * 2 ** 20, 0.25
 IN_FLIGHT = 4                 # runs judged at once (whole between their run and metrics tasks)
 
 
@@ -53,6 +55,22 @@ def needs(plan, planner) -> dict:
     return {"references": refs, "maps": maps, "tests": tests, "run": run}
 
 
+def margin(need: dict) -> int:
+    """The bytes left free beside what the plan `need` (needs) keeps: MARGIN_SHARE of it, between
+    MARGIN_MIN and MARGIN."""
+    keeps = need["references"] + need["maps"] + sum(k for _, k in need["tests"].values()) \
+        + IN_FLIGHT * need.get("run", 0)
+    return int(min(MARGIN, max(MARGIN_MIN, MARGIN_SHARE * keeps)))
+
+
+def size(n: float) -> str:
+    """Bytes for a message: GB, MB or KB, whichever reads."""
+    for unit, b in (("GB", 2 ** 30), ("MB", 2 ** 20)):
+        if n >= b:
+            return f"{n / b:.1f} {unit}"
+    return f"{n / 2 ** 10:.1f} KB"
+
+
 def fit(need: dict, free: int, figures: bool, folder: Path, already: frozenset = frozenset(),
         log=print) -> frozenset:
     """The tests whose runs are pruned once judged: `already` and, if the others' runs do not all
@@ -62,13 +80,15 @@ def fit(need: dict, free: int, figures: bool, folder: Path, already: frozenset =
     tests = need["tests"]
     kept = need["maps"] + sum(k for _, k in tests.values())
     flight = IN_FLIGHT * need.get("run", 0)          # runs whole between their run and metrics tasks
-    floor = need["references"] + kept + flight + MARGIN
+    spare = margin(need)
+    floor = need["references"] + kept + flight + spare
     gb = 2 ** 30
     if floor > free:
-        raise DiskError(f"the study needs about {floor / gb:.1f} GB in the cache folder {folder} (references "
-                        f"{need['references'] / gb:.1f} GB, the runs' kept frames and maps {kept / gb:.1f} GB, "
-                        f"{IN_FLIGHT} runs being judged {flight / gb:.1f} GB, {MARGIN / gb:.0f} GB spare) and "
-                        f"{free / gb:.1f} GB is free: free some, or set TAA_STUDY_CACHE to a larger disk")
+        raise DiskError(f"the study needs about {size(floor)} in the cache folder {folder} (references "
+                        f"{size(need['references'])}, the runs' kept frames and maps {size(kept)}, "
+                        f"{IN_FLIGHT} runs being judged {size(flight)}, {size(spare)} spare: "
+                        f"{MARGIN_SHARE:.0%} of these, {size(MARGIN_MIN)} to {size(MARGIN)}) and "
+                        f"{size(free)} is free: free some, or set TAA_STUDY_CACHE to a larger disk")
     if not figures:
         return frozenset(tests)
     room, whole = free - floor, set()

@@ -15,17 +15,31 @@ from PIL import Image
 from references.exr import write_exr
 
 
-def strict_json(obj, **kw) -> str:
-    """One strict JSON document: NaN and infinities (undefined or unbounded figures) become null."""
+def strict_json(obj, infinity: str | None = None, **kw) -> str:
+    """One strict JSON document: NaN (an undefined figure) becomes null, and so do infinities, or
+    with `infinity="inf"` the strings "inf" and "-inf" (a PSNR of an exact image is +inf, not
+    undefined; `from_strict` reads them back). Bare NaN/Infinity are not JSON: a browser's or
+    jq's parser refuses the whole document."""
     def clean(o):
         if isinstance(o, float) and not math.isfinite(o):
-            return None
+            return None if infinity is None or math.isnan(o) else ("-" if o < 0 else "") + infinity
         if isinstance(o, dict):
             return {str(k): clean(v) for k, v in o.items()}
         if isinstance(o, (list, tuple)):
             return [clean(v) for v in o]
         return o
     return json.dumps(clean(obj), allow_nan=False, default=str, **kw)
+
+
+def from_strict(obj):
+    """A document strict_json(..., infinity="inf") wrote, with "inf" and "-inf" as floats again."""
+    if isinstance(obj, str) and obj in ("inf", "-inf"):
+        return float(obj)
+    if isinstance(obj, dict):
+        return {k: from_strict(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [from_strict(v) for v in obj]
+    return obj
 
 
 def slug(label: str) -> str:

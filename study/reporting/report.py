@@ -15,7 +15,7 @@ from provenance.files import write_bytes_atomic, write_text_atomic
 from study.config.protocols import GHOSTING_FIGURES
 from study.engine.results import shown_frames
 from study.reporting import map_noise, plots
-from study.reporting.encode import display_8bit, exr_bytes, magma, png, slug
+from study.reporting.encode import display_8bit, exr_bytes, magma, png, slug, strict_json
 from study.reporting.findings_text import floor_note, precision_note
 from study.reporting.summaries import Summaries
 from study.reporting.sharpen_sweep import SharpenSweep
@@ -295,7 +295,8 @@ class Report(Summaries, Upscaling, SharpenSweep):
         inputs = {"metrics": sorted({a["metrics_key"] for _, r in tests for a in r.artefacts.values()}),
                   "video": sorted({a.get("video_key") or "" for _, r in tests for a in r.artefacts.values()}),
                   "precision": res.precision}
-        self._file("tables/figures.json", lambda: json.dumps(doc, indent=1, sort_keys=True, default=str), inputs)
+        # strict JSON, infinities as "inf" (study.reporting.encode.from_strict reads them back)
+        self._file("tables/figures.json", lambda: strict_json(doc, infinity="inf", indent=1, sort_keys=True), inputs)
         if not res.precision:
             return
         rows = []

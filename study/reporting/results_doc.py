@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 
+from study.reporting.encode import from_strict
 from study.reporting import findings_text as FT
 from study.reporting.tables import Table, fmt, fmt_u
 from study.reporting.thesis import THESIS_COLUMNS
@@ -97,7 +98,7 @@ def load(folder) -> StudyFiles:
     mraw = mpath.read_bytes()
     manifest = _json(mraw, mpath, {"artefacts": dict, "summary": dict})
     arts = manifest["artefacts"]
-    figures = _json(_checked(folder, arts, FIGURES), folder / FIGURES, {"tests": list})
+    figures = from_strict(_json(_checked(folder, arts, FIGURES), folder / FIGURES, {"tests": list}))   # "inf": ∞
     record = _json(_checked(folder, arts, FINDINGS), folder / FINDINGS, {"claims": list, "protocols": list})
     headline = _checked(folder, arts, HEADLINE).decode() if HEADLINE in arts else ""
     for i, c in enumerate(record["claims"]):

@@ -9,7 +9,7 @@ import numpy as np
 
 import backend
 from study.reporting import plots
-from study.reporting.tables import Table, fmt, fmt_u
+from study.reporting.tables import Table, best_of, fmt, fmt_u
 from study.reporting.thesis import (THESIS_COLUMNS, THESIS_GHOST_FRAMES, THESIS_GHOST_MSE, THESIS_SHARPEN,
                                     THESIS_STATIC_PSNR, THESIS_STATIC_SSIM)
 
@@ -49,7 +49,7 @@ class Summaries:
                              default=None) for m in ("psnr", "ssim")}
                 rows.append([r.scene, vlabel] + [f"{fmt('psnr', psnr.get(l), us['psnr'])} / "
                                                   f"{fmt('ssim', ssim.get(l), us['ssim'])}" for l in labels]
-                            + [max(psnr, key=psnr.get), f"{fmt_u(us['psnr'])} / {fmt_u(us['ssim'])}"])
+                            + [best_of("psnr", psnr) or "–", f"{fmt_u(us['psnr'])} / {fmt_u(us['ssim'])}"])
         self._table("headline", Table("Static test, PSNR (dB) / SSIM on 8-bit display images",
                                       ["scene", "protocol"] + labels + ["best PSNR", "± reference"], rows,
                                       "Techniques without history (No AA, FXAA, SMAA, SSAA) give the same image "

@@ -94,6 +94,24 @@ def technique_columns(header: list[str], first: int = 1) -> list[str]:
     return header[first:end]
 
 
+def best_of(metric: str, values: dict) -> str | None:
+    """The label of the best figure under `metric` (study.metrics.suite.better); where figures tie
+    for best, every tied label ('A = B'), or 'all tied' when all of two or more do (identical
+    configurations, or every column at ∞): the first column is not better than its equals. None
+    without a figure (None and NaN are not figures)."""
+    present = {l: v for l, v in values.items() if v is not None and not (isinstance(v, float) and math.isnan(v))}
+    if not present:
+        return None
+    top = next(iter(present.values()))
+    for v in present.values():
+        if better(metric, v, top):
+            top = v
+    tied = [l for l, v in present.items() if v == top]
+    if len(tied) == 1:
+        return tied[0]
+    return "all tied" if len(tied) == len(values) else " = ".join(tied)
+
+
 def thesis_layout(title: str, results: dict[str, dict], metrics: list[str], improved: str | None,
                   note: str = "", uncertainty: dict[str, dict] | None = None) -> Table:
     """results: technique label -> {metric: value}. Best column = label of the best technique.
@@ -110,18 +128,13 @@ def thesis_layout(title: str, results: dict[str, dict], metrics: list[str], impr
         u_row = max(us) if us else None
         vals = {l: results[l].get(m) for l in labels}
         present = {l: v for l, v in vals.items() if v is not None and not (isinstance(v, float) and math.isnan(v))}
-        best = None
-        for l, v in present.items():
-            if best is None or better(m, v, present[best]):
-                best = l
-        if m == "ms":   # lower is better for time too
-            best = min(present, key=present.get) if present else None
+        best = best_of("mse" if m == "ms" else m, vals)      # lower is better for time too
         cmp = "–"
         if improved in present and best is not None:
-            if best == improved:
+            if best == improved or best == "all tied" or improved in best.split(" = "):
                 cmp = "best"
             else:
-                a, b = present[improved], present[best]
+                a, b = present[improved], present[best.split(" = ")[0]]
                 cmp = "∞" if math.isinf(a - b) else f"{a - b:+.{DIGITS.get(m, 4)}g}"
         row = [METRIC_LABELS.get(m, m)] + [fmt(m, vals[l], u_row) for l in labels] + [best or "–", cmp]
         if uncertainty is not None:
