@@ -8,11 +8,44 @@ from pathlib import Path
 
 import click
 
+from scenes.description import MAX_SIDE
 from study.commands.common import (PROFILE_OPTION, _cache_folder, _execution_options, _executor, _fail,
                                    _load_scenes, _profile, _scene_list, _strict_json, _techniques, main,
                                    run_study)
 
 PAPER_DIR = Path(__file__).resolve().parents[2] / "paper"       # the checkout's paper/ (main.tex)
+
+_UNIT_SECONDS = {"s": 1.0, "m": 60.0, "h": 3600.0, "d": 86400.0}
+
+
+def parse_duration(text: str) -> float:
+    """Seconds of a duration such as '90m', '2h', '3600s', '1h30m' or '1.5h' (units s, m, h, d;
+    at least one, each a number >= 0). ValueError otherwise."""
+    import re
+    t = text.strip().lower()
+    parts = re.findall(r"(\d+(?:\.\d+)?)([smhd])", t)
+    if not t or not parts or "".join(n + u for n, u in parts) != t:
+        raise ValueError("expected a duration such as 90m, 2h, 3600s or 1h30m (units s, m, h, d)")
+    return sum(float(n) * _UNIT_SECONDS[u] for n, u in parts)
+
+
+def _deadline(ctx, param, value):
+    """--stop-after's value as the deadline (study.engine.execute.now() + the duration), from now."""
+    if value is None:
+        return None
+    try:
+        seconds = parse_duration(value)
+    except ValueError as exc:
+        raise click.BadParameter(f"{value!r}: {exc}") from None
+    from study.engine.execute import now
+    return now() + seconds
+
+
+STOP_AFTER_OPTION = click.option(
+    "--stop-after", "deadline", default=None, metavar="DURATION", callback=_deadline,
+    help="Start no task after DURATION (e.g. 90m, 2h, 3600s) from now: the tasks in flight finish, "
+         "nothing is written for the unfinished study, and it exits with status 3; the same command "
+         "again resumes it, recomputing nothing that finished.")
 
 
 @main.command()
@@ -29,8 +62,10 @@ PAPER_DIR = Path(__file__).resolve().parents[2] / "paper"       # the checkout's
 @click.option("--precision", "rule", type=click.Choice(["figures", "per_pixel"]), default=None,
               help="References refined until every figure is within its tolerance ('figures'), or every "
                    "reference at the [reference] per-pixel bound ('per_pixel'); default: the study file's.")
+@STOP_AFTER_OPTION
 @_execution_options
-def run(study_file, profile, scene_list, tech_list, out_dir, no_agreement, rule, workers, threads, scheduler):
+def run(study_file, profile, scene_list, tech_list, out_dir, no_agreement, rule, deadline, workers, threads,
+        scheduler):
     """Run a study (a study file, or a built-in profile) and write tables, maps and plots (make-style)."""
     import dataclasses
 
@@ -41,7 +76,8 @@ def run(study_file, profile, scene_list, tech_list, out_dir, no_agreement, rule,
     names = scene_list or list(prof.scenes) or builtin_names()
     configs = _techniques(tech_list, prof.techniques)
     run_study(prof, names, configs, out_dir, no_agreement or not prof.agreement,
-              _executor(workers, threads, scheduler), sweep=prof.sweep and not tech_list, own_columns=not tech_list)
+              _executor(workers, threads, scheduler), sweep=prof.sweep and not tech_list, own_columns=not tech_list,
+              deadline=deadline)
 
 
 @main.command()
@@ -107,7 +143,8 @@ def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
             for k, v in row["seconds"].items():
                 totals[k] = totals.get(k, 0.0) + v
         rows.append(row)
-    doc = {"study": prof.name, "tasks": plan.counts(), "complete": len(plan.cached), "scenes": rows, "disk": disk}
+    doc = {"study": prof.name, "tasks": plan.counts(), "complete": len(plan.cached), "scenes": rows, "disk": disk,
+           "memory": _memory_need(prof, names)}
     if measure:
         doc["seconds"] = totals
     if as_json:
@@ -117,6 +154,12 @@ def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
     click.echo(f"disk: references {disk['references_gb']:.1f} GB, runs {disk['runs_whole_gb']:.1f} GB whole while "
                f"their tests refine ({disk['runs_kept_gb']:.1f} GB once pruned to the frames the report reads), "
                f"maps {disk['maps_gb']:.1f} GB; {disk['free_gb']:.1f} GB free in the cache's disk (study.engine.disk)")
+    mem = doc["memory"]
+    click.echo(f"memory: about {mem['per_process_gb']:.1f} GB per rendering process at the largest size "
+               f"({mem['width']}x{mem['height']}, scene {mem['scene']}), {mem['processes']} at once by default: "
+               f"{mem['need_gb']:.1f} GB; {mem['available_gb']:.1f} GB available"
+               + ("  [MORE THAN AVAILABLE: fewer --workers or a smaller resolution]" if mem["need_gb"] > mem["available_gb"]
+                  else "") + " (raster.limits)")
     head = "scene | res | refs | raster | subframes | steps | judged | agreement"
     if measure:
         head += " | ref s/frame | metrics s/frame | est. ref min | est. total min"
@@ -137,6 +180,22 @@ def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
                       " more or less)" if study.precision.rule == "figures" else ")"))
 
 
+def _memory_need(prof, names) -> dict:
+    """The memory a study needs at its largest render size (raster.limits), per process and for
+    the processes the default executor runs at once."""
+    from raster.limits import available_memory, memory_need
+    from study.commands.common import _study_size
+    from study.engine.execute import Executor
+    sizes = {n: _study_size(prof, n) for n in names}
+    scene = max(sizes, key=lambda n: sizes[n][0] * sizes[n][1])
+    w, h = sizes[scene]
+    ex = Executor.auto()
+    procs = ex.workers if ex.kind == "auto" else 1
+    gb = 2 ** 30
+    return {"scene": scene, "width": w, "height": h, "per_process_gb": memory_need(w, h) / gb, "processes": procs,
+            "need_gb": memory_need(w, h, procs) / gb, "available_gb": available_memory() / gb}
+
+
 def _technique_names(ctx, param, value):
     if not value:
         return value
@@ -148,8 +207,8 @@ def _technique_names(ctx, param, value):
 
 
 @main.command()
-@click.option("--width", default=1600, show_default=True, type=click.IntRange(min=8))
-@click.option("--height", default=900, show_default=True, type=click.IntRange(min=8))
+@click.option("--width", default=1600, show_default=True, type=click.IntRange(min=8, max=MAX_SIDE))
+@click.option("--height", default=900, show_default=True, type=click.IntRange(min=8, max=MAX_SIDE))
 @click.option("--repeats", default=7, show_default=True, type=click.IntRange(min=1),
               help="Timed runs per technique (median).")
 @click.option("--technique", "tech_names", multiple=True, callback=_technique_names,
@@ -211,8 +270,10 @@ def _scales(text):
               help="Comma-separated render scales of an upscaler A or B (taa_impl.upscale): one comparison "
                    "per scale, e.g. 0.5,0.67.")
 @click.option("--json", "as_json", is_flag=True, help="Print one strict JSON object (nothing else on stdout).")
+@STOP_AFTER_OPTION
 @_execution_options
-def ab(a, b, scene_list, profile, study_file, gates, video, render_scale, as_json, workers, threads, scheduler):
+def ab(a, b, scene_list, profile, study_file, gates, video, render_scale, as_json, deadline, workers, threads,
+       scheduler):
     """Compare technique configuration B against A: paired differences with bootstrap intervals.
 
     A and B are 'name' or 'Label=name:field=value,...', e.g.
@@ -247,7 +308,7 @@ def ab(a, b, scene_list, profile, study_file, gates, video, render_scale, as_jso
     blocks = []
     for sc, xa, xb in pairs:
         failed, block = _ab_pair(xa, xb, scene_list, prof, video, as_json, limits, sc,
-                                 _executor(workers, threads, scheduler))
+                                 _executor(workers, threads, scheduler), deadline)
         any_failed |= bool(failed)
         blocks.append(block)
     if as_json:
@@ -257,16 +318,19 @@ def ab(a, b, scene_list, profile, study_file, gates, video, render_scale, as_jso
         sys.exit(1)
 
 
-def _ab_pair(ca, cb, scene_list, prof, video, as_json, limits, scale, executor):
+def _ab_pair(ca, cb, scene_list, prof, video, as_json, limits, scale, executor, deadline=None):
     """One A/B comparison, printed unless `as_json`: (the failed gates, its JSON object)."""
     from study.commands.ab import compare
-    from study.engine.runner import Study
+    from study.commands.common import _stopped
+    from study.engine.runner import Study, StudyStopped
     from study.engine.tasks import TaskError
     try:
         res = compare(ca, cb, scene_list, prof, progress=not as_json, video=video,
-                      study=Study(prof, progress=not as_json, executor=executor))
+                      study=Study(prof, progress=not as_json, executor=executor, deadline=deadline))
     except TaskError as exc:
         _fail(str(exc))
+    except StudyStopped as exc:
+        _stopped(exc)
     # a gate with no finite pair to judge fails: it cannot say B is within the threshold
     failed = {m: res.worse_by(m) for m, lim in limits.items() if not res.worse_by(m) <= lim}
     block = {**res.as_dict(), "gates": limits, "failed": failed}

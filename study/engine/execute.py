@@ -15,6 +15,11 @@
                folder at the same path (a shared filesystem) and have this project installed.
 Tasks return small dicts; their images go through the cache. A task lost with its worker is run
 again elsewhere by the scheduler; a task that raises stops the study with its message.
+
+A session may have a deadline (`run --stop-after`, wall-clock seconds since the epoch, as every
+worker of a cluster reads the same clock): a task that would start after it, or whose inputs were
+not made, returns STOPPED at once instead of running, so the tasks in flight finish (each is the
+cache's unit: a task cut short would be lost) and the rest of the graph drains in moments.
 """
 from __future__ import annotations
 
@@ -79,17 +84,30 @@ class Call:
         return self.fn(*self.args)
 
 
-def _run(call: Call, deps):
-    """The task's result and its wall seconds (where the study's time goes, by task kind)."""
+# What a task returns in place of its result when the session's deadline had passed as it would start.
+STOPPED = "taa-study: not started, past the deadline"
+
+
+def now() -> float:
+    """The clock deadlines are read on (wall seconds since the epoch: the same on every worker)."""
+    return time.time()
+
+
+def _run(call: Call, deps, deadline=None):
+    """The task's result and its wall seconds (where the study's time goes, by task kind); (STOPPED,
+    0) without running it when `deadline` has passed or a task it depends on was not run."""
+    if deadline is not None and (now() >= deadline or any(isinstance(d, tuple) and d and d[0] == STOPPED
+                                                            for d in deps)):
+        return STOPPED, 0.0
     t0 = time.perf_counter()
     out = call(deps)
     return out, time.perf_counter() - t0
 
 
-def graph(plan) -> dict:
-    """The Dask graph of a plan: key -> (run, Call, [dependency keys]); dependencies only order the
-    tasks (their results are small records; the data they made is read from the cache)."""
-    return {key: (_run, Call(t.fn, t.args), list(t.deps)) for key, t in plan.tasks.items()}
+def graph(plan, deadline: float | None = None) -> dict:
+    """The Dask graph of a plan: key -> (run, Call, [dependency keys], deadline); dependencies only
+    order the tasks (their results are small records; the data they made is read from the cache)."""
+    return {key: (_run, Call(t.fn, t.args), list(t.deps), deadline) for key, t in plan.tasks.items()}
 
 
 class _Bar:
@@ -115,10 +133,16 @@ class Session:
     """Where a study's plans run, held open across its precision rounds: a cluster started once,
     not once per round (its workers keep their compiled kernels and their EGL contexts)."""
 
-    def __init__(self, executor: Executor = Executor(), log=print):
+    def __init__(self, executor: Executor = Executor(), log=print, deadline: float | None = None):
         self.executor, self.log = executor, log
         self._client = self._cluster = None
         self.task_seconds = Counter()     # kind -> task seconds over every round so far
+        self.deadline = deadline          # no task starts after it (now()); None: none
+        self.not_started = Counter()      # kind -> tasks of the last execute() left for the deadline
+
+    def past_deadline(self) -> bool:
+        """Whether the session's deadline has passed (no new task would start)."""
+        return self.deadline is not None and now() >= self.deadline
 
     def _connect(self, n_tasks: int):
         ex = self.executor
@@ -162,11 +186,13 @@ class Session:
         self.close()
 
     def execute(self, plan, progress: bool = True) -> dict:
-        """Run every task of the plan; key -> result (the plan's cached results included)."""
+        """Run every task of the plan; key -> result (the plan's cached results included). Under a
+        deadline the tasks it left unstarted have no result: `not_started` counts them by kind."""
         results = dict(plan.cached)
+        self.not_started = Counter()
         if not plan.tasks:
             return results
-        dsk = graph(plan)
+        dsk = graph(plan, self.deadline)
         keys = list(dsk)
         bar = _Bar(plan, progress)
         try:
@@ -177,22 +203,30 @@ class Session:
 
                 class _Progress(Callback):
                     def _posttask(self, key, result, dsk_, state, worker_id):
-                        bar.finished(plan.tasks[key].kind, result[1])
+                        if not _stopped(result[0]):
+                            bar.finished(plan.tasks[key].kind, result[1])
 
                 with _Progress():
                     out = dask.get(dsk, keys)
-                results.update((k, r) for k, (r, _) in zip(keys, out))
+                results.update((k, r) for k, (r, _) in zip(keys, out) if not _stopped(r))
             else:
                 from distributed import as_completed
                 futures = client.get(dsk, keys, sync=False)
                 for fut in as_completed(futures):
-                    results[fut.key], seconds = fut.result()     # re-raises a task's own exception
-                    bar.finished(plan.tasks[fut.key].kind, seconds)
-                missing = [k for k in keys if k not in results]
+                    r, seconds = fut.result()     # re-raises a task's own exception
+                    if not _stopped(r):
+                        results[fut.key] = r
+                        bar.finished(plan.tasks[fut.key].kind, seconds)
+                missing = [k for k in keys if k not in results and not self.deadline]
                 if missing:
                     raise RuntimeError(f"{len(missing)} tasks returned no result")
         finally:
             bar.close()
         self.task_seconds.update(bar.seconds)
+        self.not_started = Counter(plan.tasks[k].kind for k in keys if k not in results)
         return results
+
+
+def _stopped(result) -> bool:
+    return isinstance(result, str) and result == STOPPED
 

@@ -37,10 +37,35 @@ def is_animated(scene: ResolvedScene) -> bool:
     return scene.desc.frames > 1 and bool(f & {"moving_object", "moving_camera", "camera_cut"})
 
 
+class StudyStopped(Exception):
+    """A study stopped at its deadline (`run --stop-after`) before it finished: the tasks in flight
+    finished and are in the cache, the rest were not started; the same command again resumes it.
+    `computed`: what this study computed before it stopped (the counts of a finished study's
+    summary); `not_started`: task kind -> tasks left; `rounds`: precision rounds begun."""
+
+    def __init__(self, computed: dict, not_started: Counter, rounds: int):
+        self.computed, self.not_started, self.rounds = computed, not_started, rounds
+        left = ", ".join(f"{k} {n}" for k, n in sorted(not_started.items())) or "the next round's"
+        super().__init__(f"stopped at the deadline in precision round {rounds}: tasks not started {left}; "
+                         f"computed before it: runs {computed['runs_computed']}, metrics "
+                         f"{computed['metrics_computed']}, references {computed['references_rendered']}")
+
+
+def computed_counts(results: dict) -> dict:
+    """What a study's task results computed (not found in the cache): its summary's counts."""
+    return {"runs_computed": sum(len([r for r in v["runs"].values() if r["computed"]])
+                                 for v in results.values() if v["kind"] == "run"),
+            "metrics_computed": sum(1 for v in results.values() if v["kind"] == "metrics" and v["computed"]),
+            "video_computed": sum(1 for v in results.values() if v["kind"] == "video" and v["computed"]),
+            "references_rendered": sum(1 for v in results.values() if v["kind"] == "reference" and v["rendered"])}
+
+
 class Study:
     def __init__(self, profile: str | Profile = "quick", cache_root: Path | None = None, progress: bool = True,
-                 log=None, executor: Executor = Executor()):
+                 log=None, executor: Executor = Executor(), deadline: float | None = None):
         self.profile: Profile = get_profile(profile)
+        # no task starts after it (study.engine.execute.now(); None: none): run() raises StudyStopped
+        self.deadline = deadline
         self.cache = ReferenceCache(cache_root)
         self.progress = progress
         self.log = log or (lambda m: print(m, file=sys.stderr))
@@ -165,7 +190,7 @@ class Study:
             self.levels, tried, over, self.drifts = P.from_record(memo["replayed"])
             self.log("precision: every test's bound as decided by an earlier study of the same inputs")
             settled = True
-        with Session(self.executor, self.log) as session:     # one cluster for every round
+        with Session(self.executor, self.log, self.deadline) as session:     # one cluster for every round
             while True:
                 with code_snapshot():
                     plan, scenes, statics, ghosts, sweeps, sharpens = self.plan(specs, configs, agreement, sweep, ghosting,
@@ -208,10 +233,14 @@ class Study:
                     self.log(f"study: {len(plan.tasks)} tasks to compute ({', '.join(f'{k} {n}' for k, n in sorted(counts.items()))})"
                              f", {len(plan.cached)} complete; executor: {self.executor.describe()}")
                 t0, spent = time.perf_counter(), Counter(session.task_seconds)
+                if plan.tasks and session.past_deadline():
+                    self._stop(rounds, {}, Counter(t.kind for t in plan.tasks.values()))
                 results = session.execute(plan, self.progress)
                 for key in [k for k, v in results.items() if "records" in v]:   # a metrics or video task: by key
                     task = results.pop(key)
                     results.update({mkey: {"kind": task["kind"], "key": mkey, **rec} for mkey, rec in task["records"].items()})
+                if session.not_started:   # the deadline came: what finished is cached, nothing is decided
+                    self._stop(rounds, results, session.not_started)
                 if plan.tasks:
                     spent, reused = session.task_seconds - spent, sum(v.get("frames_reused", 0) for v in results.values())
                     self.log(f"study: round {len(rounds) + 1} took {time.perf_counter() - t0:.1f} s wall; task seconds "
@@ -287,12 +316,7 @@ class Study:
             out.precision.setdefault(name, {})[proto] = {"bound_lsb": min(bounds), "rule": self.precision.rule,
                                                          "bounds": {f"{b:g}": n for b, n in sorted(bounds.items())},
                                                          "over": over.get((name, proto), []), "rounds": seen}
-        out.stats = {"runs_computed": sum(len([r for r in v["runs"].values() if r["computed"]])
-                                          for v in results.values() if v["kind"] == "run"),
-                     "metrics_computed": sum(1 for v in results.values() if v["kind"] == "metrics" and v["computed"]),
-                     "video_computed": sum(1 for v in results.values() if v["kind"] == "video" and v["computed"]),
-                     "references_rendered": sum(1 for v in results.values() if v["kind"] == "reference" and v["rendered"]),
-                     "tasks": counts, "task_seconds": dict(session.task_seconds)}
+        out.stats = {**computed_counts(results), "tasks": counts, "task_seconds": dict(session.task_seconds)}
         out.stats["runs_cached"] = max(0, sum(len(t.configs) for t in statics + ghosts + sweeps + sharpens)
                                        - out.stats["runs_computed"])
         costs = self._costs(scenes, statics, results)
@@ -313,6 +337,14 @@ class Study:
         out.sweeps = [self._with_drift(self._result(t, results, costs)) for t in sweeps]
         out.sharpen_sweeps = [self._result(t, results, {}) for t in sharpens]
         return out
+
+    def _stop(self, rounds: list, partial: dict, not_started: Counter):
+        """Raise StudyStopped: the finished rounds' and this round's finished tasks counted."""
+        results: dict = {}
+        for _, r in rounds + [(None, partial)]:
+            for k, v in r.items():
+                results.setdefault(k, v)
+        raise StudyStopped(computed_counts(results), not_started, len(rounds) + 1)
 
     def _with_drift(self, res: TestResult) -> TestResult:
         """A figure's stated uncertainty: its halves' plus its change from the coarser bound."""
@@ -379,7 +411,7 @@ class Study:
         return C.measure_study(self.cache.root, scenes, statics, self._records, self.display, self.progress)
 
 
-__all__ = ["Study", "StudyResults", "TestResult", "is_animated"]
+__all__ = ["Study", "StudyResults", "StudyStopped", "TestResult", "is_animated"]
 
 
 def _seeded_early(tests, seeded: set, ghost: set) -> frozenset:
