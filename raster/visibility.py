@@ -64,10 +64,31 @@ def _shared_platform():
     return _PLATFORM
 
 
+_GL_LIMITS: tuple[int, int, int] | None = None
+
+
+def gl_limits() -> tuple[int, int, int]:
+    """(GL_MAX_RENDERBUFFER_SIZE, GL_MAX_VIEWPORT_DIMS width, height) of this process's context,
+    queried once."""
+    global _GL_LIMITS
+    if _GL_LIMITS is None:
+        _shared_platform()
+        rb = int(gl.glGetIntegerv(gl.GL_MAX_RENDERBUFFER_SIZE))
+        vw, vh = (int(v) for v in np.asarray(gl.glGetIntegerv(gl.GL_MAX_VIEWPORT_DIMS)).ravel()[:2])
+        _GL_LIMITS = (rb, vw, vh)
+    return _GL_LIMITS
+
+
 class VisibilityPass:
     def __init__(self, width: int, height: int):
+        from .limits import check_size
+        check_size(width, height, "the visibility pass")     # the package's own limit (raster.limits)
         self.width, self.height = width, height
         self._platform = _shared_platform()
+        rb, vw, vh = gl_limits()
+        if max(width, height) > rb or width > vw or height > vh:
+            raise RasterError(f"{width}x{height} is beyond this OpenGL context's limits "
+                              f"(GL_MAX_RENDERBUFFER_SIZE {rb}, GL_MAX_VIEWPORT_DIMS {vw}x{vh})")
         self._programs = ShaderProgramCache(SHADER_DIR)
         self._fb = gl.glGenFramebuffers(1)
         self._cb, self._db = gl.glGenRenderbuffers(2)

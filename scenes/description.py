@@ -186,9 +186,14 @@ class PointLight(_Strict):
 Light = Annotated[Union[DirectionalLight, PointLight], Field(discriminator="type")]
 
 
+# The largest image side anything here renders (raster.limits holds the reason and the memory check).
+MAX_SIDE = 8192
+_Side = Annotated[int, Field(ge=8, le=MAX_SIDE)]
+
+
 class Resolution(_Strict):
-    quick: tuple[Annotated[int, Field(ge=8)], Annotated[int, Field(ge=8)]] = (320, 180)
-    full: tuple[Annotated[int, Field(ge=8)], Annotated[int, Field(ge=8)]] = (1600, 900)
+    quick: tuple[_Side, _Side] = (320, 180)
+    full: tuple[_Side, _Side] = (1600, 900)
 
 
 class Scene(_Strict):

@@ -279,3 +279,53 @@ def test_a_technique_file_that_is_not_python_is_named():
     assert r.exit_code == 2, r.output
     assert "a technique file must be a Python file" in r.output and "'file.txt'" in r.output, r.output
     assert "is not field=value" not in r.output
+
+
+def _study(tmp_path, resolution):
+    f = tmp_path / "s.toml"
+    f.write_text(f'name = "s"\nscenes = ["pipe"]\nresolution = {resolution}\nagreement = false\n'
+                 '[[techniques]]\nspec = "noaa"\n')
+    return str(f)
+
+
+def test_sizes_past_the_raster_limit_are_refused_where_they_enter(tmp_path, monkeypatch):
+    monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))
+    r = CliRunner().invoke(main, ["estimate", _study(tmp_path, "[16384, 16384]")])
+    assert r.exit_code == 2 and "resolution" in r.output and "8..8192" in r.output and "16384" in r.output, r.output
+    scene = tmp_path / "big.toml"
+    from study_fixtures import write_scenes
+    _, still = write_scenes(tmp_path)
+    import re
+    scene.write_text(re.sub(r"quick = \[\d+, \d+\]", "quick = [100000, 8]", open(still).read()))
+    r = CliRunner().invoke(main, ["estimate", "--scenes", str(scene)])
+    assert r.exit_code == 2 and "resolution.quick[0]" in r.output and "8192" in r.output \
+        and "100000" in r.output and "Traceback" not in r.output, r.output
+    for cmd in (["render", "--scene", "pipe", "--no-reference", "--out", str(tmp_path / "out")],
+                ["agree", "--scene", "pipe"], ["bench"]):
+        r = CliRunner().invoke(main, cmd + ["--width", "100000", "--height", "16"])
+        assert r.exit_code == 2 and "'--width'" in r.output and "100000" in r.output and "8192" in r.output, r.output
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_size_that_does_not_fit_in_memory_is_refused_before_any_output(tmp_path, monkeypatch):
+    import raster.limits as L
+    monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setattr(L, "available_memory", lambda: 2 ** 29)          # 0.5 GiB free
+    out = tmp_path / "out"
+    r = CliRunner().invoke(main, ["render", "--scene", "pipe", "--no-reference", "--width", "1024", "--height", "576",
+                                  "--out", str(out)])
+    assert r.exit_code == 2, r.output
+    assert "--scene pipe: 1024x576 needs about 0.7 GiB of memory (256 B/pixel), 0.5 GiB is available" in r.output
+    r = CliRunner().invoke(main, ["run", _study(tmp_path, "[1024, 576]"), "--out", str(out)])
+    assert r.exit_code == 2 and "scene pipe (study 's', resolution (1024, 576)): 1024x576 needs" in r.output \
+        and "0.5 GiB is available" in r.output, r.output
+    assert not out.exists() and not (tmp_path / "cache").exists()
+    # estimate prints the need: 600 MiB + 256 B a pixel per rendering process
+    monkeypatch.setattr(L, "available_memory", lambda: 2 ** 34)
+    r = CliRunner().invoke(main, ["estimate", _study(tmp_path, "[640, 360]"), "--json"])
+    mem = json.loads(r.stdout)["memory"]
+    assert (mem["width"], mem["height"], mem["scene"]) == (640, 360, "pipe")
+    assert mem["per_process_gb"] == pytest.approx((600 * 2 ** 20 + 256 * 640 * 360) / 2 ** 30)
+    assert mem["available_gb"] == 16.0
+    r = CliRunner().invoke(main, ["estimate", _study(tmp_path, "[640, 360]")])
+    assert "memory: about 0.6 GB per rendering process at the largest size (640x360, scene pipe)" in r.output

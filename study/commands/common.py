@@ -254,6 +254,33 @@ def _profile(study_file, profile):
         _fail(str(exc))
 
 
+def _check_render_size(width, height, where: str, processes: int = 1) -> int:
+    """Exit 2 unless width x height is a size the raster renders (raster.limits: 8..8192 a side)
+    and `processes` processes rendering it fit in the memory available; the need in bytes."""
+    from raster.limits import SizeError, check_memory, check_size
+    try:
+        check_size(width, height, where)
+        return check_memory(width, height, where, processes)
+    except SizeError as exc:
+        _fail(str(exc))
+
+
+def _study_size(profile, name) -> tuple[int, int]:
+    from study.engine.tasks import load_scene
+    r = profile.resolution
+    return tuple(r) if isinstance(r, (tuple, list)) else load_scene(name).resolution(r)
+
+
+def _check_study_sizes(profile, names, executor) -> None:
+    """Every scene's render size against the memory available to the processes that render at
+    once (a local cluster's workers), before the output folder is made."""
+    procs = executor.workers if executor.kind in ("local", "auto") else 1
+    for name in names:
+        w, h = _study_size(profile, name)
+        _check_render_size(w, h, f"scene {name} (study {profile.name!r}, resolution {profile.resolution!r})",
+                           procs)
+
+
 def _load_scenes(names):
     from scenes import SceneError
     from study.engine.tasks import load_scene
@@ -308,6 +335,7 @@ def run_study(profile, names, configs, out_dir, no_agreement, executor, sweep=Tr
 
     start = _time.perf_counter()
     _load_scenes(names)
+    _check_study_sizes(profile, names, executor)
     folder = _study_out(out_dir or profile.out or f"out/{profile.name}")
     out = folder.path
     _cache_folder()

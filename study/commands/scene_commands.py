@@ -7,7 +7,9 @@ import sys
 import click
 
 from references import settings as reference_settings
-from study.commands.common import _cache_folder, _fail, _scene_and_size, _strict_json, _writable_folder, main
+from scenes.description import MAX_SIDE
+from study.commands.common import (_cache_folder, _check_render_size, _fail, _scene_and_size, _strict_json,
+                                   _writable_folder, main)
 
 
 @main.command()
@@ -64,8 +66,8 @@ def _print_agreement(a) -> None:
 @click.option("--all", "all_builtin", is_flag=True, help="Every built-in scene.")
 @click.option("--frame", default=0, show_default=True, help="Frame index of the scene's animation.")
 @click.option("--profile", type=click.Choice(["quick", "full"]), default="quick", show_default=True)
-@click.option("--width", type=click.IntRange(min=8), help="Override the profile's width.")
-@click.option("--height", type=click.IntRange(min=8), help="Override the profile's height.")
+@click.option("--width", type=click.IntRange(min=8, max=MAX_SIDE), help="Override the profile's width.")
+@click.option("--height", type=click.IntRange(min=8, max=MAX_SIDE), help="Override the profile's height.")
 @click.option("--samples", default=256, show_default=True, type=click.IntRange(min=1),
               help="Jittered raster frames averaged.")
 @click.option("--target-noise-db", default=reference_settings.TARGET_NOISE_DB, show_default=True,
@@ -88,6 +90,7 @@ def agree(scene_names, all_builtin, frame, profile, width, height, samples, targ
     results = []
     for name in names:
         scene, w, h = _scene_and_size(name, profile, width, height)
+        _check_render_size(w, h, f"--scene {name}")
         if frame < 0 or frame >= scene.desc.frames:
             _fail(f"scene {name!r} has frames 0..{scene.desc.frames - 1}; --frame {frame} is out of range")
         a = check_agreement(scene, w, h, frame=frame, samples=samples, target_noise_db=target_noise_db,
@@ -106,8 +109,8 @@ def agree(scene_names, all_builtin, frame, profile, width, height, samples, targ
 @click.option("--scene", "scene_name", required=True, help="Built-in scene name or scene file.")
 @click.option("--frame", default=0, show_default=True)
 @click.option("--profile", type=click.Choice(["quick", "full"]), default="quick", show_default=True)
-@click.option("--width", type=click.IntRange(min=8), help="Override the profile's width.")
-@click.option("--height", type=click.IntRange(min=8), help="Override the profile's height.")
+@click.option("--width", type=click.IntRange(min=8, max=MAX_SIDE), help="Override the profile's width.")
+@click.option("--height", type=click.IntRange(min=8, max=MAX_SIDE), help="Override the profile's height.")
 @click.option("--jitter", nargs=2, type=float, default=(0.0, 0.0), show_default=True,
               help="Sub-pixel offset (ox, oy) of the raster frame's sample.")
 @click.option("--buffers", default="color,albedo,depth,object_id,motion", show_default=True,
@@ -125,6 +128,7 @@ def render(scene_name, frame, profile, width, height, jitter, buffers, no_refere
     from references.exr import write_exr
 
     scene, w, h = _scene_and_size(scene_name, profile, width, height)
+    _check_render_size(w, h, f"--scene {scene_name}")
     wanted = [b.strip() for b in buffers.split(",") if b.strip()]
     bad = [b for b in wanted if b not in BUFFERS]
     if bad:

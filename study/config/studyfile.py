@@ -204,8 +204,9 @@ class StudyModel(_Model):
     @field_validator("resolution")
     @classmethod
     def _size(cls, v):
-        if isinstance(v, tuple) and not all(8 <= x <= 16384 for x in v):
-            raise ValueError(f"width and height must be in 8..16384, got {list(v)}")
+        from scenes.description import MAX_SIDE     # the largest side the raster renders (raster.limits)
+        if isinstance(v, tuple) and not all(8 <= x <= MAX_SIDE for x in v):
+            raise ValueError(f"width and height must be in 8..{MAX_SIDE}, got {list(v)}")
         return v
 
 
