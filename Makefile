@@ -6,7 +6,7 @@ PY := .venv/bin/python
 export PYTHONDONTWRITEBYTECODE :=
 STAMP := .venv/.setup-stamp
 
-.PHONY: study test setup clean-cache paper results
+.PHONY: study thesis test setup clean-cache paper results
 
 $(STAMP): pyproject.toml scripts/setup.sh scripts/apt_install.sh
 	bash scripts/setup.sh
@@ -16,6 +16,11 @@ setup: $(STAMP)
 
 study: $(STAMP)
 	$(PY) -m study run --profile quick
+
+# The thesis's own study at its 1600x900 (study/config/profiles/thesis.toml; docs/guide.md). Long:
+# THESIS_ARGS="--stop-after 2h" stops it on time (exit 3), and `make thesis` again resumes it.
+thesis: $(STAMP)
+	$(PY) -m study run --profile thesis $(THESIS_ARGS)
 
 # docs/results.md and the README's results block from the quick study's folder (taa-study results).
 results: $(STAMP)

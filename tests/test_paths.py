@@ -19,6 +19,6 @@ def test_bench_finds_its_numpy_oracle():
 
 
 def test_profiles_templates_and_thesis_figures_are_found():
-    assert builtin_profiles() == ["full", "quick"] and PROFILE_DIR == ROOT / "study" / "config" / "profiles"
+    assert builtin_profiles() == ["full", "quick", "thesis"] and PROFILE_DIR == ROOT / "study" / "config" / "profiles"
     assert thesis.FIGURES_FILE.is_file()
     assert (Path(html_report.__file__).parent / "templates" / "report.html.j2").is_file()

@@ -120,6 +120,12 @@ def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
             "runs_whole_gb": sum(w for w, _ in need["tests"].values()) / gb,
             "runs_kept_gb": sum(k for _, k in need["tests"].values()) / gb,
             "free_gb": D.free_bytes(study.cache.root) / gb}
+    # the most the cache holds at once: every test's runs whole while its references refine, or, with
+    # the runs pruned once judged (study.engine.disk.fit, where the whole do not fit), the least
+    kept = need["references"] + need["maps"] + sum(k for _, k in need["tests"].values()) + D.IN_FLIGHT * need["run"]
+    disk["peak_gb"] = (need["references"] + need["maps"] + sum(w for w, _ in need["tests"].values())
+                       + D.margin(need)) / gb
+    disk["least_gb"] = (kept + D.margin(need)) / gb
     rows, totals = [], {}
     for name, sw in work.items():
         row = {"scene": name, "resolution": [sw.width, sw.height], "references": sw.references,
@@ -154,6 +160,9 @@ def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
     click.echo(f"disk: references {disk['references_gb']:.1f} GB, runs {disk['runs_whole_gb']:.1f} GB whole while "
                f"their tests refine ({disk['runs_kept_gb']:.1f} GB once pruned to the frames the report reads), "
                f"maps {disk['maps_gb']:.1f} GB; {disk['free_gb']:.1f} GB free in the cache's disk (study.engine.disk)")
+    click.echo(f"disk at its peak: {disk['peak_gb']:.1f} GB with every test's runs whole, at least "
+               f"{disk['least_gb']:.1f} GB with runs pruned once judged (a test refined again then remakes "
+               f"its runs), each with its margin")
     mem = doc["memory"]
     click.echo(f"memory: about {mem['per_process_gb']:.1f} GB per rendering process at the largest size "
                f"({mem['width']}x{mem['height']}, scene {mem['scene']}), {mem['processes']} at once by default: "
