@@ -36,6 +36,7 @@ from scenes import ResolvedScene
 from . import settings as S
 from .exr import read_exr, write_exr
 from .render import Reference, render_reference
+from .reuse import global_change
 
 _CODE_FILES = ("shading/surface.py", "shading/frame.py", "references/render.py", "references/estimates.py",
                "references/settings.py", "references/reuse.py",
@@ -68,7 +69,6 @@ def reference_key(scene: ResolvedScene, t: int, width: int, height: int, *, code
 
 def reuses(scene: ResolvedScene, t: int, width: int, height: int, reuse: bool, reuse_since: int) -> bool:
     """Whether frame t's reference keeps pixels of frame t - 1's (references.reuse.global_change)."""
-    from .reuse import global_change
     return bool(reuse) and t > max(int(reuse_since), 0) and global_change(scene, t, width, height) is None
 
 

@@ -79,6 +79,7 @@ from shading import frame_geometry
 from . import estimates as E
 from . import settings as S
 from .mitsuba_scene import path_integrator, path_scene
+from .reuse import reuse_mask
 from .tracer import _PixelTracer
 
 LSB = 1.0 / 255.0
@@ -234,7 +235,6 @@ def _reuse_of(scene: ResolvedScene, t: int, width: int, height: int, prev: Refer
               held_out: bool, cap_spp: int) -> dict | None:
     """converge's `reuse` from frame t - 1's reference: the pixels references.reuse keeps whose
     estimate met the bound by its own decisions (under the cap; display SE within the bound)."""
-    from .reuse import reuse_mask
     if prev.image.shape != (height, width, 3) or prev.sample_lo is None or prev.half_delta is None:
         raise ReferenceError(f"scene {scene.name!r} frame {t}: the previous frame's reference has another "
                              f"size or keeps no sample extremes or halves; it cannot be reused")

@@ -152,7 +152,8 @@ def changed_pixels(scene: ResolvedScene, t: int, width: int, height: int, margin
         if not np.all(np.isfinite(r)):
             return None
         xa, ya = int(np.floor(max(x0, -1e9))) - m, int(np.floor(max(y0, -1e9))) - m
-        xb, yb = int(np.ceil(min(x1, 1e9))) + m, int(np.ceil(min(y1, 1e9))) + m
+        # pixel x covers [x, x + 1): the one holding x1 itself too
+        xb, yb = int(np.floor(min(x1, 1e9))) + 1 + m, int(np.floor(min(y1, 1e9))) + 1 + m
         out[max(ya, 0):max(min(yb, height), 0), max(xa, 0):max(min(xb, width), 0)] = True
     return out
 
