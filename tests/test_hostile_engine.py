@@ -319,3 +319,15 @@ def test_the_spare_disk_margin_scales_with_the_study():
             "10.0 MB is free") in str(e.value), str(e.value)
     big = {"references": 40 * 2 ** 30, "maps": 0, "tests": {}, "run": 0}
     assert D.margin(big) == 2 * 2 ** 30
+
+
+def test_a_first_report_never_clears_files_that_appeared_meanwhile(tmp_path):
+    """A folder someone filled while the study ran is not the empty folder the study was given."""
+    from study.reporting.out_folder import OutFolder, OutFolderError
+    out = tmp_path / "o"
+    with OutFolder(out) as folder:
+        out.mkdir()
+        (out / "mine.txt").write_text("x")
+        with pytest.raises(OutFolderError, match="files appeared in the folder while the study ran"):
+            folder.write(lambda where: (where / "manifest.json").write_text("{}"))
+    assert sorted(p.name for p in out.iterdir()) == ["mine.txt"] and sorted(p.name for p in tmp_path.iterdir()) == ["o"]

@@ -145,6 +145,10 @@ class OutFolder:
             except OSError as exc:
                 if exc.errno not in (errno.EEXIST, errno.ENOTEMPTY, errno.EXDEV, errno.EBUSY):
                     raise
+        entries = list(self.path.iterdir())
+        if entries and not (self.path / INCOMPLETE).is_file():     # not ours: someone's files came meanwhile
+            raise OutFolderError(f"--out {self.path}: files appeared in the folder while the study ran; "
+                                 "nothing was written")
         (self.path / INCOMPLETE).write_text("a study's report being moved into place (taa-study)\n")
         for old in self.path.iterdir():                    # an earlier incomplete move's leftovers
             if old.name != INCOMPLETE:
