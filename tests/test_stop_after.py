@@ -12,7 +12,7 @@ from study.commands.study_commands import parse_duration
 from study.engine import execute
 from study_fixtures import STILL, moving_scene
 
-MOVING = moving_scene(frames=3, size=(40, 24), segments=12)
+MOVING = moving_scene(frames=2, size=(32, 18), segments=8)
 # short protocols, two columns, no video metric: the whole study in seconds
 STUDY = """
 name = "stop"
@@ -27,7 +27,7 @@ history = 16
 checkpoints = [4, 16]
 [[protocols.ghosting]]
 name = "ghosting"
-frames = 3
+frames = 2
 [precision]
 rule = "per_pixel"
 [video]
@@ -62,7 +62,7 @@ def _computed(output) -> dict:
     return dict(zip(("runs_computed", "metrics_computed", "references_rendered"), map(int, m.groups())))
 
 
-@pytest.mark.long(seconds=25)
+@pytest.mark.long(seconds=30)
 def test_a_stopped_study_resumes_to_an_uninterrupted_one_s_figures_recomputing_nothing(tmp_path, monkeypatch):
     (tmp_path / "moving.toml").write_text(MOVING)
     (tmp_path / "still.toml").write_text(STILL)
