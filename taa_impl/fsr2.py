@@ -30,15 +30,16 @@ Departures from FSR 2 (checked against FSR 2.2.1's shaders, commit 1680d1e), eac
    RCAS's limits assume [0, 1]; its limiters take the centre pixel in (min(ring, centre),
    max(ring, centre)), as FSR 1.0's RCAS does: FSR 2's copy uses the ring alone, which at a local
    peak overshoots 1 (0.99 on 0.5: 2.46), past what the inverse tone map can undo;
- - the upsample's footprint: the 4x4 around the sample left of and above the output centre
-   without its corners, deringed into the 2x2 nearest samples' range (FSR 2: the 3x3 around
-   floor(centre), deringed into its min/max); where the centre falls on a sample the 12 taps miss
-   one of the 3x3's diagonals (tests/test_fsr2_oracle.py holds both forms);
+ - the upsample (FSR 2's: the 3x3 samples around floor(output centre), weights zeroed at or
+   below FSR2_EPSILON, the colour deringed into the samples' min/max): off-screen samples stay out
+   of the rectification box and its min/max (FSR 2 loads them unclamped, its ClampLoad given a
+   zero offset: out-of-range loads, black in Direct3D 12, which darken the box at the border;
+   tests/test_fsr2_oracle.py holds both forms);
  - locks: lifetime in frames and a trust luma (2.2.1: lifetime drained by the upsample weight and a
    1/32-resolution shading-change luma);
  - the luma instability test (fsr2_passes.luma_instability), and no reactive, transparency or
    motion-divergence masks (the study's scenes give none);
- - the exact Lanczos-2 (2.2.1 uses its polynomial approximation), box moments over on-screen taps;
+ - the exact Lanczos-2 (2.2.1 uses its polynomial approximation);
  - RECTIFY_TOLERANCE (below).
 """
 from __future__ import annotations

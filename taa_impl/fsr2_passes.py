@@ -142,48 +142,47 @@ def create_locks(fr, thin, jitter):
 
 
 # -- 6. upsample --------------------------------------------------------------------------------
+FSR2_EPSILON = 1e-3   # FSR 2's: weights at or below it count as none
+
+
 def upsample(fr, color_ycocg, jitter, kernel_bias, curve_bias):
-    """The current frame at output resolution: the 3x3 render samples around each output pixel's
-    centre, weighted Lanczos-2 of their offset times `kernel_bias` (render pixels times the
-    downsample ratio: output pixels, so the kernel spans the same output footprint at every
-    scale), the colour deringed into the 2x2 nearest samples' range; and the rectification box:
-    moments with weights exp(curve_bias |offset|^2) (offset in render pixels) and the samples'
-    min/max. Returns (colour, weight = sum of Lanczos weights, box centre, box vec (std), aabb)."""
-    g = fr.render
-    # the render pixel whose jittered sample is closest to the output centre's top-left
-    bx = mi.Int32(dr.floor(fr.ux - 0.5 - jitter[0]))
-    by = mi.Int32(dr.floor(fr.uy - 0.5 - jitter[1]))
-    acc, wsum = dr.zeros(mi.Color3f, fr.output.n), dr.zeros(mi.Float, fr.output.n)
-    m1, m2, bw = dr.zeros(mi.Color3f, fr.output.n), dr.zeros(mi.Color3f, fr.output.n), dr.zeros(mi.Float, fr.output.n)
-    amin = dr.full(mi.Color3f, 3.4e38, fr.output.n)
-    amax = dr.full(mi.Color3f, -3.4e38, fr.output.n)
-    dmin, dmax = dr.full(mi.Color3f, 3.4e38, fr.output.n), dr.full(mi.Color3f, -3.4e38, fr.output.n)
-    for dy in (-1, 0, 1, 2):
-        for dx in (-1, 0, 1, 2):
-            if (dx in (-1, 2)) and (dy in (-1, 2)):
-                continue        # the 4x4's corners: beyond the kernel's reach (FSR 2 reads 3x3 + the 2x2)
-            xi, yi = bx + dx, by + dy
+    """FSR 2's upsample of the current frame at output resolution. Per output pixel, its centre u
+    in render pixels and the nine render samples in floor(u) + {-1, 0, 1}^2, offset d = sample's
+    jittered position - u: the colour sum of Lanczos-2(|d| `kernel_bias`) c over the on-screen
+    ones (`kernel_bias`: render pixels times the downsample ratio, i.e. output pixels, so the
+    kernel spans the same output footprint at every scale), normalised and deringed into the
+    samples' min/max where the weight sum exceeds FSR2_EPSILON (else weight 0 and the sum as it
+    is); the rectification box: moments with weights exp(`curve_bias` |d|^2) and the min/max.
+    Departure: off-screen samples stay out of the box (FSR 2 reads them unclamped, an
+    out-of-range load: black in Direct3D 12). Returns (colour, weight = sum of Lanczos weights,
+    box centre, box vec (std), aabb min, aabb max)."""
+    g, n = fr.render, fr.output.n
+    ix, iy = mi.Int32(dr.floor(fr.ux)), mi.Int32(dr.floor(fr.uy))
+    acc, wsum = dr.zeros(mi.Color3f, n), dr.zeros(mi.Float, n)
+    m1, m2, bw = dr.zeros(mi.Color3f, n), dr.zeros(mi.Color3f, n), dr.zeros(mi.Float, n)
+    amin, amax = dr.full(mi.Color3f, 3.4e38, n), dr.full(mi.Color3f, -3.4e38, n)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            xi, yi = ix + dx, iy + dy
             on = (xi >= 0) & (xi < g.w) & (yi >= 0) & (yi < g.h)
             c = dr.gather(mi.Color3f, color_ycocg, dr.clip(yi, 0, g.h - 1) * g.w + dr.clip(xi, 0, g.w - 1))
             ox = mi.Float(xi) + 0.5 + jitter[0] - fr.ux
             oy = mi.Float(yi) + 0.5 + jitter[1] - fr.uy
-            w = dr.select(on, lanczos2(dr.sqrt(ox * ox + oy * oy) * kernel_bias), 0.0)
+            d2 = ox * ox + oy * oy
+            w = dr.select(on, lanczos2(dr.sqrt(d2) * kernel_bias), 0.0)
             acc += c * w
             wsum += w
-            bwi = dr.select(on, dr.exp(curve_bias * (ox * ox + oy * oy)), 0.0)
+            bwi = dr.select(on, dr.exp(curve_bias * d2), 0.0)
             m1 += c * bwi
             m2 += c * c * bwi
             bw += bwi
             amin = dr.select(on, dr.minimum(amin, c), amin)
             amax = dr.select(on, dr.maximum(amax, c), amax)
-            if dx in (0, 1) and dy in (0, 1):
-                dmin = dr.select(on, dr.minimum(dmin, c), dmin)
-                dmax = dr.select(on, dr.maximum(dmax, c), dmax)
-    ok = wsum > 1e-4
-    col = dr.select(ok, acc / dr.maximum(wsum, 1e-4), (m1 / dr.maximum(bw, 1e-30)))
-    col = dr.clip(col, dmin, dmax)
-    centre = m1 / dr.maximum(bw, 1e-30)
-    vec = dr.sqrt(dr.abs(m2 / dr.maximum(bw, 1e-30) - centre * centre))
+    ok = wsum > FSR2_EPSILON
+    col = dr.select(ok, dr.clip(acc / dr.select(ok, wsum, 1.0), amin, amax), acc)
+    bw = dr.select(dr.abs(bw) > FSR2_EPSILON, bw, 1.0)
+    centre = m1 / bw
+    vec = dr.sqrt(dr.abs(m2 / bw - centre * centre))
     return col, dr.select(ok, wsum, 0.0), centre, vec, amin, amax
 
 

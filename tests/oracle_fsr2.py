@@ -9,8 +9,9 @@ taa_impl's Dr.Jit kernels. Exact reciprocals and the exact Lanczos-2 (the shader
 Lanczos type) stand for the GPU's approximations.
 
 Each function has the FSR 2 form and, behind a switch, the study's documented departures from it
-(taa_impl.fsr2's module notes), so the Dr.Jit implementation is checked against this reference
-exactly where it follows FSR 2 and is seen to depart only where it says it does.
+(taa_impl.fsr2's module notes: RCAS's limiters, the upsample's off-screen samples), so the Dr.Jit
+implementation is checked against this reference exactly where it follows FSR 2 and is seen to
+depart only where it says it does.
 """
 from __future__ import annotations
 
@@ -72,68 +73,65 @@ def lanczos2(x: float) -> float:
     return math.sin(math.pi * x) / (math.pi * x) * math.sin(0.5 * math.pi * x) / (0.5 * math.pi * x)
 
 
-def upsample(img, out_w: int, out_h: int, jitter, kernel_bias, curve_bias, study: bool = True) -> dict:
-    """The current frame (H, W, 3), render resolution, at (out_h, out_w): per output pixel, the
-    render samples near its centre (jittered positions: pixel centre + `jitter`, render pixels),
-    weighted Lanczos-2(|offset| * kernel_bias); the rectification box from the same samples,
-    weights exp(curve_bias |offset|^2): its centre, std (`vec`) and min/max. `kernel_bias`,
-    `curve_bias`: scalars or (out_h, out_w) arrays.
+def upsample(img, out_w: int, out_h: int, jitter, kernel_bias, curve_bias, offscreen: str = "zero") -> dict:
+    """FSR 2.2.1's `ComputeUpsampledColorAndWeight` (ffx_fsr2_upsample.h) on the current frame
+    (H, W, 3), render resolution, at (out_h, out_w). `jitter`: each render sample's position minus
+    its pixel centre, in render pixels (FSR 2's Jitter() is its negative: the sample at
+    i + 0.5 - Jitter()). `kernel_bias`, `curve_bias`: scalars or (out_h, out_w) arrays.
 
-    FSR 2 (study=False): the 3x3 samples around floor(output centre), box and aabb over all nine
-    (clamp-loaded), the colour deringed into the aabb, no weight below FSR2_EPSILON.
-    The study (study=True): the 4x4 around the output centre without its corners (12 samples,
-    from the sample left of and above the centre), box and aabb over the on-screen ones, deringed
-    into the 2x2 nearest samples' range, and the box centre where the weights sum to <= 1e-4.
+    Per output pixel, the output centre u in render pixels (as FSR 2 computes it: float32
+    (x + 0.5) * render / output size) and the nine samples i in floor(u) + {-1, 0, 1}^2 (FSR 2's
+    offsetTL and row/column flips reorder them, they do not move them); offset d = sample - u:
+     - colour: sum of Lanczos-2(|d| kernel_bias) c over the on-screen samples; the weight sum
+       zeroed at or below FSR2_EPSILON; above it the colour is normalised and deringed: clamped
+       into the aabb (its Deringing); at or below it the unnormalised sum is returned;
+     - the rectification box over all nine samples, weights exp(curve_bias |d|^2): centre and
+       std (`vec`) of the weighted moments (the weight sum taken as 1 at or below FSR2_EPSILON),
+       aabb = min/max. FSR 2 loads the samples through ClampLoad with a zero offset, which clamps
+       nothing: an off-screen sample is an out-of-range texture load, 0 in Direct3D 12 (and with
+       Vulkan's robust image access). `offscreen`: 'zero' reads them so (FSR 2);
+       'skip' leaves them out of the box and aabb (the study's departure, taa_impl.fsr2).
 
     Returns a dict of (out_h, out_w[, 3]) float64 arrays: colour, weight, centre, vec, aabb_min,
     aabb_max."""
+    if offscreen not in ("zero", "skip"):
+        raise ValueError(f"offscreen must be 'zero' or 'skip', got {offscreen!r}")
     img = np.asarray(img, np.float64)
     rh, rw = img.shape[:2]
-    sx, sy = rw / out_w, rh / out_h
+    sx, sy = np.float32(rw / out_w), np.float32(rh / out_h)
     kb = np.broadcast_to(np.asarray(kernel_bias, np.float64), (out_h, out_w))
     cb = np.broadcast_to(np.asarray(curve_bias, np.float64), (out_h, out_w))
     res = {k: np.zeros((out_h, out_w, 3)) for k in ("colour", "centre", "vec", "aabb_min", "aabb_max")}
     res["weight"] = np.zeros((out_h, out_w))
     for y in range(out_h):
         for x in range(out_w):
-            ux, uy = (x + 0.5) * sx, (y + 0.5) * sy
-            if study:
-                bx, by = math.floor(ux - 0.5 - jitter[0]), math.floor(uy - 0.5 - jitter[1])
-                taps = [(bx + i, by + j, i in (0, 1) and j in (0, 1)) for j in (-1, 0, 1, 2) for i in (-1, 0, 1, 2)
-                        if not (i in (-1, 2) and j in (-1, 2))]
-            else:
-                ix, iy = math.floor(ux), math.floor(uy)
-                taps = [(ix + i, iy + j, False) for j in (-1, 0, 1) for i in (-1, 0, 1)]
+            ux, uy = float(np.float32(x + 0.5) * sx), float(np.float32(y + 0.5) * sy)
+            ix, iy = math.floor(ux), math.floor(uy)
             acc, wsum = np.zeros(3), 0.0
             m1, m2, bw = np.zeros(3), np.zeros(3), 0.0
-            lo, hi, dlo, dhi = [np.full(3, np.inf), np.full(3, -np.inf), np.full(3, np.inf), np.full(3, -np.inf)]
-            for xi, yi, near in taps:
-                on = 0 <= xi < rw and 0 <= yi < rh
-                c = img[min(max(yi, 0), rh - 1), min(max(xi, 0), rw - 1)]
-                ox = xi + 0.5 + jitter[0] - ux
-                oy = yi + 0.5 + jitter[1] - uy
-                w = lanczos2(math.hypot(ox, oy) * kb[y, x]) if on else 0.0
-                acc += w * c
-                wsum += w
-                if on or not study:
-                    bwi = math.exp(cb[y, x] * (ox * ox + oy * oy))
-                    m1 += bwi * c
-                    m2 += bwi * c * c
-                    bw += bwi
-                    lo, hi = np.minimum(lo, c), np.maximum(hi, c)
-                    if near:
-                        dlo, dhi = np.minimum(dlo, c), np.maximum(dhi, c)
-            if not study and abs(bw) <= FSR2_EPSILON:
+            lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+            for yi in (iy - 1, iy, iy + 1):
+                for xi in (ix - 1, ix, ix + 1):
+                    on = 0 <= xi < rw and 0 <= yi < rh
+                    c = img[yi, xi] if on else np.zeros(3)
+                    ox = xi + 0.5 + jitter[0] - ux
+                    oy = yi + 0.5 + jitter[1] - uy
+                    w = lanczos2(math.hypot(ox, oy) * kb[y, x]) if on else 0.0
+                    acc += w * c
+                    wsum += w
+                    if on or offscreen == "zero":
+                        bwi = math.exp(cb[y, x] * (ox * ox + oy * oy))
+                        m1 += bwi * c
+                        m2 += bwi * c * c
+                        bw += bwi
+                        lo, hi = np.minimum(lo, c), np.maximum(hi, c)
+            if abs(bw) <= FSR2_EPSILON:
                 bw = 1.0
             centre = m1 / bw
             res["centre"][y, x] = centre
             res["vec"][y, x] = np.sqrt(np.abs(m2 / bw - centre * centre))
             res["aabb_min"][y, x], res["aabb_max"][y, x] = lo, hi
-            if study:
-                ok = wsum > 1e-4
-                res["colour"][y, x] = np.clip(acc / wsum if ok else centre, dlo, dhi)
-                res["weight"][y, x] = wsum if ok else 0.0
-            elif wsum > FSR2_EPSILON:
+            if wsum > FSR2_EPSILON:
                 res["colour"][y, x] = np.clip(acc / wsum, lo, hi)
                 res["weight"][y, x] = wsum
             else:

@@ -136,14 +136,11 @@ def _oracle_step(state, c, jit, w, h, max_acc=32.0, fixed=False):
     for Y in range(h):
         for X in range(w):
             ux, uy = (X + 0.5) * sx, (Y + 0.5) * sy
-            bx, by = math.floor(ux - 0.5 - jit[0]), math.floor(uy - 0.5 - jit[1])
+            ix, iy = math.floor(ux), math.floor(uy)     # FSR 2's 3x3 around floor(output centre)
             acc, ws, m1, m2, bw = np.zeros(3), 0.0, np.zeros(3), np.zeros(3), 0.0
-            amin, amax, dmin, dmax = np.full(3, np.inf), np.full(3, -np.inf), np.full(3, np.inf), np.full(3, -np.inf)
-            for dy in (-1, 0, 1, 2):
-                for dx in (-1, 0, 1, 2):
-                    if dx in (-1, 2) and dy in (-1, 2):
-                        continue
-                    xi, yi = bx + dx, by + dy
+            amin, amax = np.full(3, np.inf), np.full(3, -np.inf)
+            for yi in (iy - 1, iy, iy + 1):
+                for xi in (ix - 1, ix, ix + 1):
                     if not (0 <= xi < rw and 0 <= yi < rh):
                         continue
                     s = cur[yi, xi]
@@ -153,10 +150,8 @@ def _oracle_step(state, c, jit, w, h, max_acc=32.0, fixed=False):
                     b = math.exp(-2.0 * (ox * ox + oy * oy))
                     m1, m2, bw = m1 + s * b, m2 + s * s * b, bw + b
                     amin, amax = np.minimum(amin, s), np.maximum(amax, s)
-                    if dx in (0, 1) and dy in (0, 1):
-                        dmin, dmax = np.minimum(dmin, s), np.maximum(dmax, s)
-            ok = ws > 1e-4
-            col = np.clip(acc / ws if ok else m1 / bw, dmin, dmax)
+            ok = ws > 1e-3
+            col = np.clip(acc / ws, amin, amax) if ok else acc
             centre = m1 / bw
             vec = np.sqrt(np.abs(m2 / bw - centre ** 2))
             w_up = (ws if ok else 0.0) / (12.0 if fixed else 1.0)
