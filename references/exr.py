@@ -34,29 +34,40 @@ _LOCK = threading.RLock()       # one library call at a time captures the proces
 
 
 class _ThreadStdout(io.TextIOBase):
-    """sys.stdout during one library call: that thread's writes are kept, every other thread's go
-    to the stream it stands in for."""
+    """sys.stdout during one library call: the calling thread's writes are kept, every other
+    thread's go to the stream it stands in for. One per stream, never freed: print() holds
+    sys.stdout by a borrowed reference (CPython 3.11), so a stand-in freed while another thread
+    prints would be used after it is freed."""
+
+    stream = thread = kept = None
 
     def __init__(self, stream):
-        self.stream, self.thread, self.kept = stream, threading.get_ident(), io.StringIO()
+        self.stream = stream
 
     def write(self, s):
-        if self.thread == threading.get_ident():
+        if self.thread is not None and self.thread == threading.get_ident():
             return self.kept.write(s)
         return self.stream.write(s)
 
     def flush(self):
-        if self.stream is not None:
-            self.stream.flush()
+        self.stream.flush()
 
     def __getattr__(self, name):          # encoding, fileno, isatty... of the stream
         return getattr(self.stream, name)
 
 
+_STAND_INS: dict[int, _ThreadStdout] = {}     # id(stream) -> its stand-in (which keeps the stream alive)
+
+
 def _call(what: str, path, fn):
     """fn() with the library's stdout and C stderr captured (see the module docstring)."""
     with _LOCK:
-        out = sys.stdout = _ThreadStdout(sys.stdout)
+        stream = sys.stdout
+        out = _STAND_INS.get(id(stream))
+        if out is None:
+            out = _STAND_INS[id(stream)] = _ThreadStdout(stream)
+        out.kept, out.thread = io.StringIO(), threading.get_ident()
+        sys.stdout = out
         c_said = ""
         try:
             with contextlib.suppress(AttributeError, ValueError, OSError):
@@ -79,9 +90,10 @@ def _call(what: str, path, fn):
             raise ExrError(f"{path}: cannot {what} EXR file: {exc}{note}") from exc
         finally:
             if sys.stdout is out:
-                sys.stdout = out.stream
+                sys.stdout = stream
             out.thread = None           # if someone swapped it meanwhile: every write goes through
-    words = _once(out.kept.getvalue() + _theirs(c_said, str(path)), str(path))
+            said = out.kept.getvalue()
+    words = _once(said + _theirs(c_said, str(path)), str(path))
     if words:
         print(f"{path}: OpenEXR: {words}", file=sys.stderr)
     return result

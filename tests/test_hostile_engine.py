@@ -24,7 +24,7 @@ def test_exr_io_on_a_thread_pool_leaves_stdout_and_fd_2_as_they_were(tmp_path, c
     stdout, fd2 = sys.stdout, os.fstat(2)
 
     def work(i):
-        path = tmp_path / f"f{i % 8}.exr"
+        path = tmp_path / f"f{i}.exr"
         write_exr(path, {"RGB": img + i})
         got = read_exr(path)[1]
         assert np.array_equal(np.stack([got[c] for c in "RGB"], -1), img + i)
@@ -94,22 +94,22 @@ def _study(tmp_path, techniques: list[str]) -> "os.PathLike":
     return path
 
 
-def _cli(tmp_path, args, timeout=300):
+def _cli(tmp_path, args, timeout=300, cache=None):
     import subprocess
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    env = {**os.environ, "TAA_STUDY_CACHE": str(tmp_path / "cache"), "TAA_STUDY_WORKERS": "1"}
+    env = {**os.environ, "TAA_STUDY_CACHE": str(cache or tmp_path / "cache"), "TAA_STUDY_WORKERS": "1"}
     return subprocess.run([sys.executable, "-m", "study", *map(str, args)], capture_output=True, text=True,
                           cwd=root, env=env, timeout=timeout)
 
 
 @pytest.mark.long(seconds=12)
-def test_two_columns_of_one_configuration_are_computed_once_and_both_reported(tmp_path):
+def test_two_columns_of_one_configuration_are_computed_once_and_both_reported(cached, tmp_path):
     """An A/B of identical configurations is a sanity check: both columns, one run, one metrics
     set, equal figures; and the tables and the summary line reach stdout (the report's thread pool
     left sys.stdout a StringIO)."""
     import csv
     study = _study(tmp_path, ["A=taa_baseline", "B=taa_baseline:sharpen=xu"])
-    r = _cli(tmp_path, ["run", study, "--out", tmp_path / "out"])
+    r = _cli(tmp_path, ["run", study, "--out", tmp_path / "out"], cache=cached[0] / "cache")   # its references
     assert r.returncode == 0, r.stderr[-3000:]
     assert "Traceback" not in r.stderr
     assert "| scene | protocol | A | B |" in r.stdout and "runs computed 1, cached 1; metrics computed 1" in r.stdout
@@ -132,22 +132,43 @@ class Bad(NoAA):
 """
 
 
-@pytest.mark.long(seconds=8)
 @pytest.mark.parametrize("out, words", [
-    ("np.zeros((h, w, 2), np.float32)", ["returned an image of shape (16, 24, 2), expected (16, 24, 3)"]),
-    ("np.zeros((h - 1, w, 3), np.float32)", ["returned an image of shape (15, 24, 3), expected (16, 24, 3)"]),
-    ("np.full((h, w, 3), np.nan, np.float32)", ["technique 'X' produced NaN/Inf in 1152 of 1152 values"]),
+    ("np.zeros((h, w, 2), np.float32)", "returned an image of shape (16, 24, 2), expected (16, 24, 3)"),
+    ("np.zeros((h - 1, w, 3), np.float32)", "returned an image of shape (15, 24, 3), expected (16, 24, 3)"),
+    ("np.full((h, w, 3), np.nan, np.float32)", "technique 'X' produced NaN/Inf in 1152 of 1152 values"),
+    ("'not an image'", "returned str, not an image"),
 ])
-def test_a_bad_output_is_refused_before_it_is_stored(tmp_path, out, words):
+def test_the_driver_checks_a_technique_output_against_its_declared_size(tmp_path, out, words):
     """An (H, W, 2) image was written past its end and the study exited 0; an (H - 1, W, 3) one was
     sealed in the cache and failed in the metrics naming nothing; NaN named no file or class."""
+    from study.config.protocols import static_schedule
+    from study.config.techniques import TechniqueConfig
+    from study.engine.drive import TechniqueError, run_schedule
+    from study.engine.tasks import load_scene
+    from study_fixtures import write_scenes
     (tmp_path / "bad_taa.py").write_text(BAD_TECHNIQUE.format(out=out))
+    _, still = write_scenes(tmp_path)
+    cfg = TechniqueConfig.parse(f"X={tmp_path / 'bad_taa.py'}:Bad")
+    emitted = []
+    with pytest.raises(TechniqueError) as e:
+        run_schedule(load_scene(still), 24, 16, static_schedule(0, 4, [4]), [cfg], {}, progress=False,
+                     emit=lambda *a: emitted.append(a))
+    for w in (words, "technique 'X'", f"{tmp_path / 'bad_taa.py'}:Bad", "scene 'tiny_still', frame 4"):
+        assert w in str(e.value), (w, str(e.value))
+    assert emitted == []                                               # nothing reached the cache
+
+
+@pytest.mark.long(seconds=8)
+def test_a_bad_output_stops_the_study_before_anything_is_sealed(tmp_path):
+    """The study exits 2 with the driver's message, seals no run and makes no output folder."""
+    (tmp_path / "bad_taa.py").write_text(BAD_TECHNIQUE.format(out="np.zeros((h, w, 2), np.float32)"))
     study = _study(tmp_path, [f"X={tmp_path / 'bad_taa.py'}:Bad"])
     r = _cli(tmp_path, ["run", study, "--out", tmp_path / "out"])
     assert r.returncode == 2, r.stderr[-3000:]
     assert "Traceback" not in r.stderr
     (err,) = [line for line in r.stderr.splitlines() if line.startswith("error:")]
-    for w in words + ["technique 'X'", f"{tmp_path / 'bad_taa.py'}:Bad", "scene 'tiny_still'", "frame 4"]:
+    for w in ("returned an image of shape (16, 24, 2), expected (16, 24, 3)", "technique 'X'",
+              f"{tmp_path / 'bad_taa.py'}:Bad", "scene 'tiny_still'", "frame 4"):
         assert w in err, (w, err)
     assert not list((tmp_path / "cache" / "runs").rglob("done.json"))      # nothing sealed
     assert not (tmp_path / "out").exists()                           # no empty output folder either
