@@ -102,7 +102,7 @@ def _cli(tmp_path, args, timeout=300, cache=None):
                           cwd=root, env=env, timeout=timeout)
 
 
-@pytest.mark.long(seconds=12)
+@pytest.mark.long(seconds=28)      # with the fixture's study
 def test_two_columns_of_one_configuration_are_computed_once_and_both_reported(cached, tmp_path):
     """An A/B of identical configurations is a sanity check: both columns, one run, one metrics
     set, equal figures; and the tables and the summary line reach stdout (the report's thread pool
@@ -196,7 +196,7 @@ def _leftovers(out):
     return sorted(p.name for p in out.parent.iterdir() if p.name.startswith(f".{out.name}."))
 
 
-@pytest.mark.long(seconds=10)
+@pytest.mark.long(seconds=14)
 def test_an_interrupted_first_report_leaves_nothing_the_rerun_refuses(cached, tmp_path, monkeypatch):
     """SIGTERM while the first report was written left tables and images without manifest.json,
     and the next run refused the folder as someone else's."""
@@ -230,7 +230,7 @@ def test_an_interrupted_first_report_leaves_nothing_the_rerun_refuses(cached, tm
     assert not (out2 / ".taa-study-incomplete").exists()
 
 
-@pytest.mark.long(seconds=10)
+@pytest.mark.long(seconds=1)
 def test_a_full_disk_while_writing_the_report_exits_2_and_keeps_the_folder_whole(cached, tmp_path, monkeypatch):
     """ENOSPC in the output folder was a traceback with exit 1."""
     import errno
