@@ -156,3 +156,35 @@ def test_a_reused_frames_key_hashes_the_frame_it_derives_from(tmp_path):
     assert cache.has(scene, 1, W, H, **FAST) and not cache.has(scene, 2, W, H, **FAST)
     assert cache.has(scene, 2, W, H, reuse=True, reuse_since=1, **FAST)
     assert not cache.has(scene, 2, W, H, reuse=True, reuse_since=0, **FAST)
+
+
+def test_a_ghosting_tests_references_chain_over_runs_of_frames_at_one_setting(tmp_path):
+    """The planner: with `reuse`, frame t's reference task runs after frame t - 1's (at the same
+    settings); an instant the precision rule refines alone starts its own chain; without, none."""
+    from study.config.protocols import Protocol
+    from study.config.techniques import TechniqueConfig
+    from study.engine.plan import Planner, chain_reuse
+    from study.engine.tasks import Context, load_scene
+    scene = load_scene("sphere_ghosting")
+    proto = Protocol("ghosting", "ghosting", frames=5)
+    fx = [TechniqueConfig.parse("FXAA=fxaa")]
+    base = {**FAST, "reuse": True}
+    finer = {**base, "se_bound_lsb": 1.0}
+    pl = Planner(Context(str(tmp_path), 1), base, None, {("sphere_ghosting", "ghosting", 3): finer}, base)
+    test = pl.add_test("sphere_ghosting", scene, proto, fx, 32, 18)
+    at = test.ref_settings_at
+    # frame 3, refined alone, starts a chain; frame 4 chains through frame 3's display reference
+    # (planned at every frame anyway): nothing is rendered only to be reused
+    assert at[0] == at[1] == at[2] == at[4] == base and at[3] == {**finer, "reuse_since": 3}
+    deps = {t: pl.plan.tasks[test.reference_tasks[t]].deps for t in at}
+    assert deps[0] == deps[3] == ()
+    for t in (1, 2, 4):
+        assert deps[t] == (pl.reference_key(scene, t - 1, 32, 18, base),)
+    # at settings of their own, frames 3 and 4 chain; frame 5 at the display's starts after them
+    at = chain_reuse({t: finer if t in (3, 4) else base for t in range(6)}, {**FAST, "reuse": True})
+    assert at[3] == at[4] == {**finer, "reuse_since": 3} and at[5] == base
+    at = chain_reuse({t: finer if t in (3, 4) else base for t in range(6)}, FAST)
+    assert at[2] == base and at[5] == {**base, "reuse_since": 5}
+    off = Planner(Context(str(tmp_path), 1), FAST, None, {}, FAST)
+    t_off = off.add_test("sphere_ghosting", scene, proto, fx, 32, 18)
+    assert all(off.plan.tasks[k].deps == () for k in t_off.reference_tasks.values())

@@ -30,6 +30,7 @@ such files (study/config/profiles/*.toml).
     [reference]
     se_bound_lsb = 0.5                               # settings of references.ReferenceCache.get
     target_noise_db = 60.0                           #   (under rule = "per_pixel")
+    reuse = true                                     # ghosting frames keep unchanged pixels of the one before
     [precision]                                      # study.engine.precision
     rule = "figures"                                 # or "per_pixel": every reference at [reference]
     psnr_db = 0.01                                   # each figure's reference uncertainty at most this

@@ -176,5 +176,6 @@ def agreement_task(ctx: Context, scene_spec: str, w: int, h: int, samples: int, 
 
 
 def _agreement_settings(ref_settings: dict) -> dict:
-    return dict(ref_settings)
+    # one frame, rendered whole: reuse across frames (references.reuse) does not apply
+    return {k: v for k, v in ref_settings.items() if k not in ("reuse", "reuse_since")}
 

@@ -120,6 +120,34 @@ def _normalized_steps(scene, protocol: Protocol, schedule: list, inp, seen: tupl
     return _STEPS[memo]
 
 
+def chain_reuse(at: dict, everywhere: dict | None = None) -> dict:
+    """A test's references by instant (`at`: scene time -> settings), each chain of references that
+    keep the previous frame's pixels (settings `reuse`, references.reuse) confined to a run of
+    consecutive instants at equal settings, or at `everywhere` (the display's, planned at every
+    instant): an instant whose predecessor is neither (one the precision rule refines alone)
+    starts a chain (`reuse_since`), so no reference is rendered only to be reused."""
+    out, prev, run = {}, None, None
+    strip = lambda d: {k: v for k, v in d.items() if k != "reuse_since"}    # noqa: E731
+    for t in sorted(at):
+        run = run if run is not None and t - 1 in at else t     # the first of the consecutive instants
+        s = dict(at[t])
+        base = strip(s)
+        if s.get("reuse"):
+            if everywhere is not None and base == strip(everywhere):
+                start = run
+            else:
+                start = prev[1] if prev is not None and prev[0] == t - 1 and prev[2] == base else t
+            start = max(start, int(s.get("reuse_since", 0)))
+            s.pop("reuse_since", None)
+            if start > 0:        # from the first frame: left out, as the display's references leave it
+                s["reuse_since"] = start
+            prev = (t, start, base)
+        else:
+            prev = None
+        out[t] = s
+    return out
+
+
 class Planner:
     def __init__(self, ctx: T.Context, ref_settings: dict, agreement_samples: int | None,
                  ref_settings_of: dict | None = None, display_settings: dict | None = None, video=None,
@@ -172,8 +200,12 @@ class Planner:
         key = self.reference_key(scene, t, w, h, settings)
         if key not in self.plan.tasks:
             from references import ReferenceCache
+            from references.cache import reuses
+            # a reference that keeps the previous frame's pixels (references.reuse) runs after it
+            deps = (self._reference(spec, scene, t - 1, w, h, settings),) if reuses(
+                scene, t, w, h, settings.get("reuse", False), settings.get("reuse_since", 0)) else ()
             self.plan.tasks[key] = Task(key, "reference", R.reference_task, (self.ctx, spec, t, w, h, dict(settings)),
-                                        likely_cached=ReferenceCache(self.store.root).has(scene, t, w, h, **settings))
+                                        deps, likely_cached=ReferenceCache(self.store.root).has(scene, t, w, h, **settings))
         return key
 
     # -- tests -----------------------------------------------------------------------------------------
@@ -191,7 +223,8 @@ class Planner:
         settings = self.settings(scene, protocol.name)
         test = Test(scene.name, spec, protocol, list(configs), w, h, ref_settings=settings)
         kept_t = sorted({s.t for s in schedule if s.keep})
-        at = test.ref_settings_at = {t: self.settings(scene, protocol.name, t) for t in kept_t}
+        at = test.ref_settings_at = chain_reuse({t: self.settings(scene, protocol.name, t) for t in kept_t},
+                                                self.display_settings)
         ref_keys = {t: self.reference_key(scene, t, w, h, at[t]) for t in kept_t}
         disp_keys = {t: self.reference_key(scene, t, w, h, self.display_settings) for t in kept_t}
         missing, steps = [], {}
