@@ -219,6 +219,17 @@ def test_an_interrupted_first_report_leaves_nothing_the_rerun_refuses(cached, tm
     assert (out / "manifest.json").is_file() and (out / "tables" / "headline.csv").is_file()
     assert _leftovers(out) == []                                       # no staging folder, no lock
 
+    # Ctrl-C in this process, while the first report is written: nothing left either
+    import study.reporting.report as R
+
+    def interrupted(self, summary):
+        raise KeyboardInterrupt
+    out3 = tmp_path / "out3"
+    with monkeypatch.context() as mp:
+        mp.setattr(R.Report, "finish", interrupted)
+        r = _run_in_process(root, study, out3, monkeypatch)
+    assert r.exit_code != 0 and not out3.exists() and _leftovers(out3) == [], r.output
+
     # a first report interrupted while it was moved into an existing (empty) folder
     out2 = tmp_path / "out2"
     (out2 / "tables").mkdir(parents=True)
