@@ -10,16 +10,17 @@ looks only at the scene's description, never at images:
     every pixel through other surfaces (transport 'path') while anything moves disable reuse for
     the frame (lights, materials and emitters are constant over a scene's frames in this
     description: only object poses and the camera move);
-  - each moving object's box swept over [t - 1, t]: a translating object's world bounding box at
-    both frames (it moves linearly, so the box in between lies in their union); a spinning one's
-    bounding sphere about its own origin, whose centre moves linearly (the spin keeps every
-    vertex's distance from it), boxed at both frames;
-  - with shadows (transport 'direct_shadows'), the shadow volume of that box from each light: for a
-    directional light the box extruded along the light's direction by the diagonal of the
+  - each moving object's volume swept over [t - 1, t], as points whose convex hull holds it: a
+    translating object's world bounding box at both frames (it moves linearly, so the box in
+    between lies in their union); a spinning one's bounding sphere about its own origin (the spin
+    keeps every vertex's distance from it), whose centre moves linearly: the capsule between the
+    two frames' spheres, held by the hull of a polyhedron circumscribing each sphere;
+  - with shadows (transport 'direct_shadows'), the shadow volume of that hull from each light: for
+    a directional light the hull extruded along the light's direction by the diagonal of the
     receivers' bounds (every object at both frames: no receiver is farther); for a point light the
-    box scaled about the light by the ratio of the receivers' farthest corner to the box's nearest
-    point (every point beyond the box along a ray from the light, up to the receivers, lies in the
-    hull of the box and that scaled copy); a light inside the box disables reuse;
+    hull scaled about the light by the ratio of the receivers' farthest corner to the nearest point
+    of the hull's box (every point beyond the hull along a ray from the light, up to the receivers,
+    lies in the hull of it and that scaled copy); a light inside the hull's box disables reuse;
   - each such convex hull, clipped at half the near plane (its part behind the camera projects to
     nothing; where its edges cross the plane is kept), projected to a pixel rectangle, widened to
     whole pixels (a reference pixel integrates its own square) and dilated by `margin` pixels:
@@ -28,9 +29,11 @@ looks only at the scene's description, never at images:
 """
 from __future__ import annotations
 
+import functools
 import itertools
 
 import numpy as np
+from scipy.spatial import ConvexHull
 
 from scenes import ResolvedScene
 
@@ -60,26 +63,44 @@ def _aabb(points: np.ndarray) -> np.ndarray:
     return np.stack([points.min(axis=0), points.max(axis=0)])
 
 
-def swept_box(scene: ResolvedScene, i: int, t: int) -> np.ndarray:
-    """(2, 3) world box holding object i at every time in [t - 1, t]."""
+@functools.cache
+def _circumscribed(n: int = 96) -> np.ndarray:
+    """(n, 3) points whose convex hull holds the unit ball: Fibonacci directions scaled by the
+    inverse of their hull's inradius (its nearest facet plane), so the bound is exact, not a guess."""
+    k = np.arange(n) + 0.5
+    z = 1 - 2 * k / n
+    phi = np.pi * (1 + 5 ** 0.5) * k
+    u = np.stack([np.sqrt(1 - z * z) * np.cos(phi), np.sqrt(1 - z * z) * np.sin(phi), z], -1)
+    inradius = float(-ConvexHull(u).equations[:, 3].max())     # facets: n.x + d <= 0 inside
+    return u / inradius * (1 + 1e-9)
+
+
+def swept_points(scene: ResolvedScene, i: int, t: int) -> np.ndarray:
+    """World points whose convex hull holds object i at every time in [t - 1, t]."""
     o = scene.desc.objects[i]
     if not o.motion.spin_deg:
-        return _aabb(np.concatenate([scene.world_vertices(i, t - 1), scene.world_vertices(i, t)]))
+        return _corners(_aabb(np.concatenate([scene.world_vertices(i, t - 1), scene.world_vertices(i, t)])))
     p0, p1 = scene.object_pose(i, t - 1), scene.object_pose(i, t)
     # the spin about the object's origin keeps each vertex's distance from it
     r = float(np.linalg.norm(scene.meshes[i].vertices @ p0[:3, :3].T, axis=1).max())
-    c = np.stack([p0[:3, 3], p1[:3, 3]])
-    return np.stack([c.min(axis=0) - r, c.max(axis=0) + r])
+    ball = _circumscribed() * r
+    return np.concatenate([p0[:3, 3] + ball, p1[:3, 3] + ball])
+
+
+def swept_box(scene: ResolvedScene, i: int, t: int) -> np.ndarray:
+    """(2, 3) world box holding object i at every time in [t - 1, t]."""
+    return _aabb(swept_points(scene, i, t))
 
 
 def _corners(box: np.ndarray) -> np.ndarray:
     return np.array([[box[a, 0], box[b, 1], box[c, 2]] for a, b, c in itertools.product((0, 1), repeat=3)])
 
 
-def shadow_points(box: np.ndarray, light, receivers: np.ndarray) -> np.ndarray | None:
-    """Points whose convex hull holds the shadow volume of `box` from `light` up to the receivers'
-    bounds (with the box itself); None where the light is inside the box (it may shadow anything)."""
-    c = _corners(box)
+def shadow_points(hull: np.ndarray, light, receivers: np.ndarray) -> np.ndarray | None:
+    """Points whose convex hull holds the shadow volume of the hull of `hull` (points) from `light`
+    up to the receivers' bounds (with the hull itself); None where the light is inside the hull's
+    box (it may shadow anything)."""
+    c, box = hull, _aabb(hull)
     world = np.stack([np.minimum(box[0], receivers[0]), np.maximum(box[1], receivers[1])])
     if light.type == "directional":
         d = np.asarray(light.direction, float)
@@ -131,15 +152,15 @@ def changed_pixels(scene: ResolvedScene, t: int, width: int, height: int, margin
     if not moving:
         return out
     cam = scene.camera(t, width, height)
-    boxes = [swept_box(scene, i, t) for i in moving]
+    swept = [swept_points(scene, i, t) for i in moving]
     receivers = _aabb(np.concatenate([scene.world_vertices(i, s) for i in range(len(scene.desc.objects))
-                                      for s in (t - 1, t)] + list(boxes)))
+                                      for s in (t - 1, t)] + swept))
     hulls = []
-    for box in boxes:
-        hulls.append(_corners(box))
+    for hull in swept:
+        hulls.append(hull)
         if shadows and scene.desc.transport == "direct_shadows":
             for light in scene.desc.lights:
-                pts = shadow_points(box, light, receivers)
+                pts = shadow_points(hull, light, receivers)
                 if pts is None:
                     return None
                 hulls.append(pts)

@@ -188,3 +188,16 @@ def test_a_ghosting_tests_references_chain_over_runs_of_frames_at_one_setting(tm
     off = Planner(Context(str(tmp_path), 1), FAST, None, {}, FAST)
     t_off = off.add_test("sphere_ghosting", scene, proto, fx, 32, 18)
     assert all(off.plan.tasks[k].deps == () for k in t_off.reference_tasks.values())
+
+
+def test_the_spinning_objects_polyhedron_holds_its_bounding_sphere():
+    from scipy.spatial import ConvexHull
+
+    from references.reuse import _circumscribed
+    pts = _circumscribed()
+    eq = ConvexHull(pts).equations                       # n.x + d <= 0 inside
+    assert (-eq[:, 3]).min() >= 1.0                      # every facet plane at least the radius away
+    u = np.random.default_rng(0).normal(size=(20000, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    assert (u @ eq[:, :3].T + eq[:, 3]).max() <= 0
+    assert np.linalg.norm(pts, axis=1).max() < 1.1       # and not much more than it
