@@ -56,6 +56,9 @@ references.estimates) and reports the mean of the rest, whose counts are then a 
 samples independent of its own: unbiased, exactly, and so are its halves. The per-pixel bound is
 then on the held-out mean's SE as the deciding share predicts it, and the reported SE is the
 held-out samples' own spread.
+`reuse_from` (frame t - 1's reference): the pixels references.reuse finds no moving object nor its
+shadow reaches keep that estimate (value, halves, counts, SE, sample extremes) and are not traced;
+the rest converge as above, their floors reading the kept neighbours' stored extremes.
 tests/test_reference_adaptive.py measures the result against uniform 16384- and 65536-spp
 references (an edge scene, 0.05-px white slivers on black) and the reported SE against a second
 seed. What no rule that looks only at samples sees: a feature well under 1/8 of a pixel (the
