@@ -112,6 +112,7 @@ REKEYS = {
     "study/metrics/ssim.py": {"metrics"},
     "study/metrics/flip.py": {"metrics"},
     "study/metrics/filters.py": {"metrics"},
+    "study/metrics/checks.py": {"metrics"},         # what the metrics refuse is part of what they judge
     "study/metrics/uncertainty.py": {"metrics", "agreement"},   # both remove the reference's bias with it
     "study/engine/judge.py": {"metrics"},
     "study/engine/drive.py": {"run", "cost"},         # costs time the driver's steps
