@@ -374,4 +374,4 @@ def _builtin_profiles() -> list[str]:
 
 
 PROFILE_OPTION = click.option("--profile", type=click.Choice(_builtin_profiles()), default="quick", show_default=True,
-                              help="A built-in study file (study/profiles/); STUDY_FILE replaces it.")
+                              help="A built-in study file (study/config/profiles/); STUDY_FILE replaces it.")
