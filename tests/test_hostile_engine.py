@@ -355,7 +355,7 @@ def test_the_spare_disk_margin_scales_with_the_study():
 
 def test_a_first_report_never_clears_files_that_appeared_meanwhile(tmp_path):
     """A folder someone filled while the study ran is not the empty folder the study was given."""
-    from study.reporting.out_folder import OutFolder, OutFolderError
+    from study.commands.out_folder import OutFolder, OutFolderError
     out = tmp_path / "o"
     with OutFolder(out) as folder:
         out.mkdir()

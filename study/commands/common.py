@@ -38,10 +38,10 @@ def _cache_folder() -> Path:
 
 
 def _study_out(path):
-    """A study's output folder (study.reporting.out_folder.OutFolder): checked, held by this study
+    """A study's output folder (study.commands.out_folder.OutFolder): checked, held by this study
     until the command ends (another study's run exits 2 naming it), made only once its report is
     written; exit 2 saying why it cannot be used."""
-    from study.reporting.out_folder import OutFolder, OutFolderError
+    from study.commands.out_folder import OutFolder, OutFolderError
     folder = OutFolder(path)
     try:
         folder.__enter__()
@@ -59,7 +59,7 @@ def _study_out(path):
 
 def _write_report(folder, write) -> None:
     """`write(where)` writes the study's report through `folder` (OutFolder.write), or exit 2."""
-    from study.reporting.out_folder import OutFolderError
+    from study.commands.out_folder import OutFolderError
     try:
         folder.write(write)
     except OutFolderError as exc:
