@@ -35,7 +35,8 @@ from scenes import ResolvedScene
 
 from . import settings as S
 from .exr import read_exr, write_exr
-from .render import Reference, render_reference
+from .render import render_reference
+from .result import Reference
 from .reuse import global_change
 
 _CODE_FILES = ("shading/surface.py", "shading/frame.py", "references/render.py", "references/estimates.py",

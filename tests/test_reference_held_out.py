@@ -3,7 +3,8 @@ the loop of references.render run on pixels whose value is known exactly."""
 import numpy as np
 import pytest
 
-from references.render import ReferenceError, converge
+from references.render import converge
+from references.result import ReferenceError
 
 
 class _Bernoulli:

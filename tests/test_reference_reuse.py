@@ -163,7 +163,8 @@ def test_a_ghosting_tests_references_chain_over_runs_of_frames_at_one_setting(tm
     settings); an instant the precision rule refines alone starts its own chain; without, none."""
     from study.config.protocols import Protocol
     from study.config.techniques import TechniqueConfig
-    from study.engine.plan import Planner, chain_reuse
+    from study.engine.plan import Planner
+    from study.engine.reuse_chain import chain_reuse
     from study.engine.tasks import Context, load_scene
     scene = load_scene("sphere_ghosting")
     proto = Protocol("ghosting", "ghosting", frames=5)

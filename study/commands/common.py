@@ -312,7 +312,7 @@ STOPPED_EXIT = 3
 
 
 def _stopped(exc) -> None:
-    """Exit STOPPED_EXIT after a study stopped at its deadline (study.engine.runner.StudyStopped)."""
+    """Exit STOPPED_EXIT after a study stopped at its deadline (study.engine.stopping.StudyStopped)."""
     click.echo(f"taa-study: {exc}", err=True)
     click.echo("taa-study: stopped at the --stop-after time, unfinished: no tables or report written; the "
                "finished tasks are in the cache. To resume, run the same command again (with a new "
@@ -329,7 +329,8 @@ def run_study(profile, names, configs, out_dir, no_agreement, executor, sweep=Tr
     import time as _time
 
     from study.config.profile import SPARSE_SWEEP, sharpen_sweep_configs
-    from study.engine.runner import Study, StudyStopped
+    from study.engine.runner import Study
+    from study.engine.stopping import StudyStopped
     from study.engine.tasks import TaskError
     from study.reporting.report import write_study
 

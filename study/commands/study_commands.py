@@ -331,7 +331,8 @@ def _ab_pair(ca, cb, scene_list, prof, video, as_json, limits, scale, executor, 
     """One A/B comparison, printed unless `as_json`: (the failed gates, its JSON object)."""
     from study.commands.ab import compare
     from study.commands.common import _stopped
-    from study.engine.runner import Study, StudyStopped
+    from study.engine.runner import Study
+    from study.engine.stopping import StudyStopped
     from study.engine.tasks import TaskError
     try:
         res = compare(ca, cb, scene_list, prof, progress=not as_json, video=video,

@@ -26,6 +26,7 @@ from study.engine import reference_task as R
 from study.engine import run_task as RT
 from study.engine import tasks as T
 from study.engine import video_task as V
+from study.engine.reuse_chain import chain_reuse
 
 
 # The code each task kind's key names (with, for a run, the technique's class): provenance hashes
@@ -118,34 +119,6 @@ def _normalized_steps(scene, protocol: Protocol, schedule: list, inp, seen: tupl
     if memo not in _STEPS:
         _STEPS[memo] = Normalized(run_steps(schedule, inp))
     return _STEPS[memo]
-
-
-def chain_reuse(at: dict, everywhere: dict | None = None) -> dict:
-    """A test's references by instant (`at`: scene time -> settings), each chain of references that
-    keep the previous frame's pixels (settings `reuse`, references.reuse) confined to a run of
-    consecutive instants at equal settings, or at `everywhere` (the display's, planned at every
-    instant): an instant whose predecessor is neither (one the precision rule refines alone)
-    starts a chain (`reuse_since`), so no reference is rendered only to be reused."""
-    out, prev, run = {}, None, None
-    strip = lambda d: {k: v for k, v in d.items() if k != "reuse_since"}    # noqa: E731
-    for t in sorted(at):
-        run = run if run is not None and t - 1 in at else t     # the first of the consecutive instants
-        s = dict(at[t])
-        base = strip(s)
-        if s.get("reuse"):
-            if everywhere is not None and base == strip(everywhere):
-                start = run
-            else:
-                start = prev[1] if prev is not None and prev[0] == t - 1 and prev[2] == base else t
-            start = max(start, int(s.get("reuse_since", 0)))
-            s.pop("reuse_since", None)
-            if start > 0:        # from the first frame: left out, as the display's references leave it
-                s["reuse_since"] = start
-            prev = (t, start, base)
-        else:
-            prev = None
-        out[t] = s
-    return out
 
 
 class Planner:

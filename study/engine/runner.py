@@ -28,6 +28,7 @@ from study.config.precision import Precision
 from study.engine import disk as D
 from study.engine import precision as P
 from study.engine.precision import decide, figures_of
+from study.engine.stopping import StudyStopped, computed_counts, stop
 from study.engine.results import Artefacts, StudyResults, TestResult, view
 from study.engine.tasks import Context, display_of, load_scene
 
@@ -35,29 +36,6 @@ from study.engine.tasks import Context, display_of, load_scene
 def is_animated(scene: ResolvedScene) -> bool:
     f = set(scene.desc.features())
     return scene.desc.frames > 1 and bool(f & {"moving_object", "moving_camera", "camera_cut"})
-
-
-class StudyStopped(Exception):
-    """A study stopped at its deadline (`run --stop-after`) before it finished: the tasks in flight
-    finished and are in the cache, the rest were not started; the same command again resumes it.
-    `computed`: what this study computed before it stopped (the counts of a finished study's
-    summary); `not_started`: task kind -> tasks left; `rounds`: precision rounds begun."""
-
-    def __init__(self, computed: dict, not_started: Counter, rounds: int):
-        self.computed, self.not_started, self.rounds = computed, not_started, rounds
-        left = ", ".join(f"{k} {n}" for k, n in sorted(not_started.items())) or "the next round's"
-        super().__init__(f"stopped at the deadline in precision round {rounds}: tasks not started {left}; "
-                         f"computed before it: runs {computed['runs_computed']}, metrics "
-                         f"{computed['metrics_computed']}, references {computed['references_rendered']}")
-
-
-def computed_counts(results: dict) -> dict:
-    """What a study's task results computed (not found in the cache): its summary's counts."""
-    return {"runs_computed": sum(len([r for r in v["runs"].values() if r["computed"]])
-                                 for v in results.values() if v["kind"] == "run"),
-            "metrics_computed": sum(1 for v in results.values() if v["kind"] == "metrics" and v["computed"]),
-            "video_computed": sum(1 for v in results.values() if v["kind"] == "video" and v["computed"]),
-            "references_rendered": sum(1 for v in results.values() if v["kind"] == "reference" and v["rendered"])}
 
 
 class Study:
@@ -234,13 +212,13 @@ class Study:
                              f", {len(plan.cached)} complete; executor: {self.executor.describe()}")
                 t0, spent = time.perf_counter(), Counter(session.task_seconds)
                 if plan.tasks and session.past_deadline():
-                    self._stop(rounds, {}, Counter(t.kind for t in plan.tasks.values()))
+                    stop(rounds, {}, Counter(t.kind for t in plan.tasks.values()))
                 results = session.execute(plan, self.progress)
                 for key in [k for k, v in results.items() if "records" in v]:   # a metrics or video task: by key
                     task = results.pop(key)
                     results.update({mkey: {"kind": task["kind"], "key": mkey, **rec} for mkey, rec in task["records"].items()})
                 if session.not_started:   # the deadline came: what finished is cached, nothing is decided
-                    self._stop(rounds, results, session.not_started)
+                    stop(rounds, results, session.not_started)
                 if plan.tasks:
                     spent, reused = session.task_seconds - spent, sum(v.get("frames_reused", 0) for v in results.values())
                     self.log(f"study: round {len(rounds) + 1} took {time.perf_counter() - t0:.1f} s wall; task seconds "
@@ -337,14 +315,6 @@ class Study:
         out.sweeps = [self._with_drift(self._result(t, results, costs)) for t in sweeps]
         out.sharpen_sweeps = [self._result(t, results, {}) for t in sharpens]
         return out
-
-    def _stop(self, rounds: list, partial: dict, not_started: Counter):
-        """Raise StudyStopped: the finished rounds' and this round's finished tasks counted."""
-        results: dict = {}
-        for _, r in rounds + [(None, partial)]:
-            for k, v in r.items():
-                results.setdefault(k, v)
-        raise StudyStopped(computed_counts(results), not_started, len(rounds) + 1)
 
     def _with_drift(self, res: TestResult) -> TestResult:
         """A figure's stated uncertainty: its halves' plus its change from the coarser bound."""

@@ -26,7 +26,7 @@ def _deterministic(fn):
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
         from raster.visibility import RasterError
-        from references.render import ReferenceError
+        from references.result import ReferenceError
         from scenes import SceneError
         try:
             return fn(*args, **kwargs)

@@ -3,7 +3,7 @@ colour scale.
 
 A map (SSIM per pixel, or FLIP LDR per pixel) is computed against the test's own reference,
 the mean of finitely many path-traced samples; its per-pixel standard error in the display domain
-(references.render.Reference.stderr through the display transform, references.estimates.display_se)
+(references.result.Reference.stderr through the display transform, references.estimates.display_se)
 moves the map too. The tables' jackknife (study.metrics.uncertainty) corrects the figures, not the
 pixels, so the maps mark the pixels where that noise exceeds what the map's colour scale resolves:
 
