@@ -74,6 +74,7 @@ def main() -> int:
 
     from display import DisplayTransform
     from study.metrics import flip as F
+    from study.metrics import judging as J
     from study.metrics import suite as M
 
     ref, x = pair(args)
@@ -87,7 +88,7 @@ def main() -> int:
         ("ssim + ssim_volume", None),
         ("flip_ldr", lambda i: M.flip(rd, xd, "LDR", i)),
         ("flip_hdr", lambda i: M.flip(ref, x, "HDR", i)),
-        ("all_metrics", lambda i: M.all_metrics(ref, rd, r8, x, xd, x8, impl=i)),
+        ("all_metrics", lambda i: J.all_metrics(ref, rd, r8, x, xd, x8, impl=i)),
     ]
     print(f"{'metric':<20}{'library wall':>13}{'cpu':>8}{'drjit wall':>12}{'cpu':>8}{'speed-up':>10}")
     for name, fn in rows:

@@ -17,7 +17,7 @@ from test_estimate import STUDY
 def test_one_metrics_task_per_test_reads_each_reference_once_and_agrees_with_judge_run(tmp_path, monkeypatch):
     from display import DisplayTransform
     from references import cache as rc
-    from study.metrics import suite as M
+    from study.metrics import judging as M
     from study.config.profile import get_profile
     from study.config.techniques import TechniqueConfig
     from study.engine.runner import Study
@@ -170,7 +170,7 @@ def test_a_test_judged_again_takes_the_figures_of_frames_whose_references_did_no
     from study.config.techniques import TechniqueConfig
     from study.engine import judge as J
     from study.engine.runner import Study
-    from study.metrics import suite as M
+    from study.metrics import judging as M
     scenes = write_scenes(tmp_path)[:1]
     configs = [TechniqueConfig.parse(s) for s in ("taa_baseline", "noaa")]
     calls, logs = [], []

@@ -71,6 +71,9 @@ def test_editing_any_dependency_changes_the_key(tmp_path):
     assert "taa_impl/improved.py" not in run_files                          # an edit elsewhere: no recompute
     assert "references/render.py" in report["reference"]["files"]
     for f in ("study/metrics/suite.py", "study/metrics/ssim.py", "study/metrics/flip.py", "study/metrics/filters.py",
+              "study/metrics/judging.py", "study/metrics/temporal.py", "study/metrics/ssim_window.py",
+              "study/metrics/ssim_passes.py", "study/metrics/ssim_against.py", "study/metrics/flip_colour.py",
+              "study/metrics/flip_passes.py",
               "study/engine/judge.py"):
         assert f in report["metrics"]["files"], f
     assert "references/render.py" in report["agreement"]["files"]
@@ -111,6 +114,13 @@ REKEYS = {
     "study/metrics/suite.py": {"metrics"},
     "study/metrics/ssim.py": {"metrics"},
     "study/metrics/flip.py": {"metrics"},
+    "study/metrics/flip_colour.py": {"metrics"},
+    "study/metrics/flip_passes.py": {"metrics"},
+    "study/metrics/ssim_window.py": {"metrics"},
+    "study/metrics/ssim_passes.py": {"metrics"},
+    "study/metrics/ssim_against.py": {"metrics"},
+    "study/metrics/judging.py": {"metrics"},
+    "study/metrics/temporal.py": {"metrics"},
     "study/metrics/filters.py": {"metrics"},
     "study/metrics/checks.py": {"metrics"},         # what the metrics refuse is part of what they judge
     "study/metrics/uncertainty.py": {"metrics", "agreement"},   # both remove the reference's bias with it

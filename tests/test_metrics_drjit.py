@@ -8,6 +8,8 @@ from skimage.metrics import structural_similarity
 
 from display import DisplayTransform
 from study.metrics import flip as F
+from study.metrics import flip_colour as FC
+from study.metrics import judging
 from study.metrics import suite as metrics
 
 TOL = 1e-5   # the bound held on means and maps; measured margins are in the assertions' comments
@@ -89,8 +91,8 @@ def test_flip_exposures_floor_the_median_at_flt_epsilon():
 
 def test_flip_constants_match_the_library():
     _, _, params = _flip_oracle(np.zeros((4, 4, 3), np.float32), np.zeros((4, 4, 3), np.float32), "LDR")
-    assert F.default_ppd() == np.float32(params["ppd"])
-    assert F.spatial_radius(F.default_ppd()) == 10 and len(F.consts().feature[0]) == 19
+    assert FC.default_ppd() == np.float32(params["ppd"])
+    assert FC.spatial_radius(FC.default_ppd()) == 10 and len(F.consts().feature[0]) == 19
     g, dg, ddg = F.consts().feature
     assert math.isclose(sum(g), 1, rel_tol=1e-6) and math.isclose(sum(v for v in dg if v > 0), 1, rel_tol=1e-6)
 
@@ -159,7 +161,7 @@ def test_ssim_volume_constants_symmetry_and_identity():
 def test_ssim_volume_in_all_metrics_and_the_metric_list():
     a, b = _pairs8()[0][1:]
     lin = (a / 255.0) ** 2.2
-    out, maps = metrics.all_metrics(lin, a / 255.0, a, (b / 255.0) ** 2.2, b / 255.0, b)
+    out, maps = judging.all_metrics(lin, a / 255.0, a, (b / 255.0) ** 2.2, b / 255.0, b)
     assert "ssim_volume" in metrics.METRICS and metrics.HIGHER_IS_BETTER["ssim_volume"]
     assert out["ssim_volume"] == pytest.approx(metrics.ssim_volume(a, b), abs=1e-14)
     assert "ssim_volume" not in maps
@@ -229,9 +231,9 @@ def test_judge_run_keeps_maps_only_for_the_frames_asked():
     images = {t: np.clip(refs[t].image + 0.05, 0, 1).astype(np.float32) for t in kept}
     disp = {t: _Display(1.0, 1.0) for t in kept}
     ref8 = {t: np.round(disp[t].encode(refs[t].image) * 255).astype(np.uint8) for t in kept}
-    res, maps = metrics.judge_run(images, "linear", refs, disp, ref8, kept)
+    res, maps = judging.judge_run(images, "linear", refs, disp, ref8, kept)
     assert set(maps) == {"ssim", "flip_ldr", "flip_hdr"} and set(res["per_frame"]) == {"0", "1", "2"}
-    res2, maps2 = metrics.judge_run(images, "linear", refs, disp, ref8, kept, maps_for={0, 2})
+    res2, maps2 = judging.judge_run(images, "linear", refs, disp, ref8, kept, maps_for={0, 2})
     assert set(maps2) == {0, 2} and np.array_equal(maps2[2]["ssim"], maps["ssim"])
     assert res2["per_frame"] == res["per_frame"]
 
@@ -257,7 +259,7 @@ def test_flip_memo_keeps_the_reference_half_and_changes_no_bit():
 def test_one_image_against_several_references_changes_no_bit():
     """A technique frame is judged against the reference and its two halves with its own half of
     SSIM (moments) and FLIP (filtered planes) computed once, the references' kept in their memos
-    across images (study.metrics.suite.all_metrics_against): every figure and map equals
+    across images (study.metrics.judging.all_metrics_against): every figure and map equals
     all_metrics pair by pair, bit for bit, and the shared halves are really shared."""
     rng = np.random.default_rng(11)
     h, w = 33, 50
@@ -269,15 +271,15 @@ def test_one_image_against_several_references_changes_no_bit():
         x_lin = (lin[0] * (1 + s * rng.standard_normal(lin[0].shape))).clip(0).astype(np.float32)
         x_disp = (x_lin / (1 + x_lin)) ** (1 / 2.2)
         x8 = np.round(x_disp * 255).astype(np.uint8)
-        got = metrics.all_metrics_against(refs, x_lin, x_disp, x8, want_maps=[True, False, True])
+        got = judging.all_metrics_against(refs, x_lin, x_disp, x8, want_maps=[True, False, True])
         for (r_lin, r_disp, r8, _), (figs, maps), keep in zip(refs, got, (True, False, True)):
-            want, want_maps = metrics.all_metrics(r_lin, r_disp, r8, x_lin, x_disp, x8)
+            want, want_maps = judging.all_metrics(r_lin, r_disp, r8, x_lin, x_disp, x8)
             assert figs == want
             assert set(maps) == (set(want_maps) if keep else set())
             for k in maps:
                 assert np.array_equal(maps[k], want_maps[k]), k
         # a ghosting test's frames (Protocol.hdr False): the same figures, none in linear HDR
-        ldr = metrics.all_metrics_against(refs, x_lin, x_disp, x8, want_maps=[True, False, True], hdr=False)
+        ldr = judging.all_metrics_against(refs, x_lin, x_disp, x8, want_maps=[True, False, True], hdr=False)
         for (figs, maps), (full, full_maps) in zip(ldr, got):
             assert figs["flip_hdr"] is None and figs["relmse_hdr"] is None and "flip_hdr" not in maps
             assert figs == {**full, "flip_hdr": None, "relmse_hdr": None}
@@ -290,4 +292,4 @@ def test_one_image_against_several_references_changes_no_bit():
     n0, n1 = (F.exposures(lin[i])[2] for i in (0, 1))
     assert len(xmemo) < n0 + n1 + n0                # the copy's exposures reuse the first's halves
     with pytest.raises(ValueError, match="NaN"):
-        metrics.all_metrics_against(refs, np.full_like(x_lin, np.nan), x_disp, x8)
+        judging.all_metrics_against(refs, np.full_like(x_lin, np.nan), x_disp, x8)

@@ -8,8 +8,11 @@ import pytest
 from skimage.metrics import structural_similarity
 
 from study.metrics import flip as F
+from study.metrics import judging as J
 from study.metrics import ssim as S
+from study.metrics import ssim_against as SA
 from study.metrics import suite as M
+from study.metrics import temporal as T
 
 
 def _pair8(h=24, w=32, seed=4):
@@ -25,7 +28,7 @@ def test_ssim_of_float_images_without_a_data_range_is_refused_naming_the_input()
     a, b = _pair8()
     af, bf = a / 255.0, b / 255.0
     for call in (lambda: S.ssim(af, bf), lambda: M.ssim(af, bf), lambda: M.ssim(af, bf, impl="library"),
-                 lambda: S.ssim_volume(af, bf), lambda: S.ssim_against([af], bf)):
+                 lambda: S.ssim_volume(af, bf), lambda: SA.ssim_against([af], bf)):
         with pytest.raises(ValueError) as err:
             call()
         msg = str(err.value)
@@ -47,7 +50,7 @@ def test_ssim_with_data_range_one_equals_the_pair_in_8_bit_and_scikit_image():
     assert abs(S.ssim_volume(af, bf, data_range=1.0) - S.ssim_volume(a, b)) < 1e-12
     small = (slice(0, 7), slice(0, 9))               # the volume form's direct path (below the window)
     assert abs(S.ssim_volume(af[small], bf[small], data_range=1.0) - S.ssim_volume(a[small], b[small])) < 1e-12
-    got = S.ssim_against([af], bf, data_range=1.0)[0]
+    got = SA.ssim_against([af], bf, data_range=1.0)[0]
     assert abs(got[0] - mean1) < 1e-15 and abs(got[2] - S.ssim_volume(a, b)) < 1e-12
     # the wrong range is the silent failure this guards against: a [0, 1] pair judged as 0..255
     assert S.ssim(af, bf, data_range=255.0)[0] > 0.999
@@ -147,26 +150,26 @@ def test_suite_figures_refuse_what_they_cannot_judge():
         M.relmse(lin, bad)
     with pytest.raises(ValueError, match="relMSE: the reference is uint8"):
         M.relmse(a, lin)
-    acc = M.TemporalInstability()
+    acc = T.TemporalInstability()
     with pytest.raises(ValueError, match="reference frame is 8x8x3, the technique frame 7x8x3"):
         acc.add(a, b[:7])
     acc.add(a, b)
     with pytest.raises(ValueError, match="frame 1 is"):
         acc.add(a[:7], b[:7])
     with pytest.raises(ValueError, match="2 reference frames and 1 technique frames"):
-        M.temporal_instability([a, a], [b])
+        T.temporal_instability([a, a], [b])
 
 
 def test_all_metrics_checks_each_image_by_name():
     a, b = _pair8(12, 12)
     lin_a, lin_b = (a / 255.0) ** 2.2, (b / 255.0) ** 2.2
     good = (lin_a, a / 255.0, a, lin_b, b / 255.0, b)
-    M.all_metrics(*good)
+    J.all_metrics(*good)
     # 8-bit display images are read as value / 255 (as FLIP reads them); an 8-bit one against a float one is refused
     f32 = [v.astype(np.float32) / np.float32(255) for v in (a, b)]
-    assert M.all_metrics(lin_a, a, a, lin_b, b, b)[0] == M.all_metrics(lin_a, f32[0], a, lin_b, f32[1], b)[0]
+    assert J.all_metrics(lin_a, a, a, lin_b, b, b)[0] == J.all_metrics(lin_a, f32[0], a, lin_b, f32[1], b)[0]
     with pytest.raises(ValueError, match="the reference is uint8 and the test image float64"):
-        M.all_metrics(lin_a, a, a, lin_b, b / 255.0, b)
+        J.all_metrics(lin_a, a, a, lin_b, b / 255.0, b)
     cases = [
         (1, lin_a * 4, "the reference display image's values span [0, 4]"),   # linear passed as display
         (4, b * 1.0, "technique display image's values span [0, 255]"),
@@ -178,17 +181,18 @@ def test_all_metrics_checks_each_image_by_name():
         args = list(good)
         args[i] = bad
         with pytest.raises(ValueError) as err:
-            M.all_metrics(*args)
+            J.all_metrics(*args)
         assert words in str(err.value), str(err.value)
         refs = [(*args[:3], {})]
         with pytest.raises(ValueError) as err:
-            M.all_metrics_against(refs, *args[3:])
+            J.all_metrics_against(refs, *args[3:])
         assert words in str(err.value), str(err.value)
 
 
 # -- documentation ----------------------------------------------------------------------------------
 
-MODULES = ("suite", "ssim", "flip", "filters", "uncertainty", "video", "checks")
+MODULES = ("suite", "judging", "temporal", "ssim", "ssim_window", "ssim_passes", "ssim_against", "flip", "flip_colour",
+           "flip_passes", "filters", "uncertainty", "video", "checks")
 
 
 def _public():

@@ -86,7 +86,7 @@ def measure_units(sw: SceneWork, ref_settings: dict, cache, configs: list) -> di
 
     from display import DisplayTransform
     from study.engine import costs as C
-    from study.metrics import suite as M
+    from study.metrics import judging as M
     from study.engine.judge import judged_references
     from study.engine.tasks import load_scene
     scene = load_scene(sw.spec)

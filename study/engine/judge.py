@@ -1,11 +1,11 @@
-"""The metrics task: one test's runs judged against their references (study.metrics.suite).
+"""The metrics task: one test's runs judged against their references (study.metrics.judging).
 
 One task per (scene, protocol) judges every technique of the test whose metrics are missing, frame
 by frame. Each reference is read, display-encoded and quantised once for all of them (at 1600x900
 reading and encoding a reference costs about as much as the metrics of one technique-frame), and
 the reference's half of SSIM and FLIP (its moments; its exposures and filtered planes) is computed
 once per reference (their memos), a technique frame's own half once for the reference and its
-two halves (study.metrics.suite.all_metrics_against); a technique's frames are read one at a time. Each technique's metrics are
+two halves (study.metrics.judging.all_metrics_against); a technique's frames are read one at a time. Each technique's metrics are
 still filed under their own key (its run, the references and the metric code), so a technique
 added to a study is judged alone, and a key another task already judges is left to it (study.engine.plan).
 
@@ -24,7 +24,8 @@ import contextlib
 from pathlib import Path
 
 from study.engine.tasks import TaskError, _deterministic, _setup, display_reference, load_scene
-from study.metrics import suite as M
+from study.metrics import judging as M
+from study.metrics import temporal as T
 from study.metrics import uncertainty as U
 
 
@@ -100,7 +101,7 @@ def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict, display_set
             by_time.setdefault(times[f], []).append((i, f))
     cache = ReferenceCache(Path(ctx.cache_root))
     state = [{"per_frame": {}, "uncertainty": {}, "maps": {}, "references": {},
-              "temporal": {h: M.TemporalInstability() for h in HALVES}} for _ in items]
+              "temporal": {h: T.TemporalInstability() for h in HALVES}} for _ in items]
     known = [FrameFigures(store, scene.name, it["run_key"], it.get("hdr", True)) for it in items]
     for t in sorted(by_time):
         ref = cache.get(scene, t, w, h, **ref_settings[t])[0]

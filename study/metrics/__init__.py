@@ -1,10 +1,14 @@
 """Image metrics on arrays alone, importable without the study engine (as scikit-image's are):
 
-  suite        MSE, RMSD, PSNR, SNR, relMSE, every metric of one image (all_metrics), temporal
-               instability, and a whole run judged (judge_run)
+  suite        MSE, RMSD, PSNR, SNR, relMSE, SSIM and FLIP of one image pair
+  judging      every metric of one image (all_metrics, all_metrics_against) and a whole run
+               judged (judge_run)
+  temporal     temporal instability of a frame sequence
   ssim         SSIM as scikit-image 0.26.0 computes it and MATLAB's volume SSIM, in Dr.Jit
-               (Wang et al. 2004)
-  flip         LDR/HDR-FLIP as flip-evaluator 1.7 computes it, in Dr.Jit (Andersson et al. 2020, 2021)
+               (Wang et al. 2004); ssim_window its Gaussian windows, ssim_passes its Dr.Jit passes,
+               ssim_against one image against several references
+  flip         LDR/HDR-FLIP as flip-evaluator 1.7 computes it, in Dr.Jit (Andersson et al. 2020, 2021);
+               flip_colour its constants and colour pipeline, flip_passes its Dr.Jit passes
   video        ColorVideoVDP, the perceptual video metric (Mantiuk et al. 2024)
   uncertainty  each figure's uncertainty from the reference's two halves (the jackknife)
   filters      the separable Dr.Jit filters SSIM and FLIP use

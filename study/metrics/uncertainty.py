@@ -45,7 +45,7 @@ def jackknife(full: dict, a: dict, b: dict) -> tuple[dict, dict]:
     Parameters
     ----------
     full : dict
-        metric -> figure judged against the reference (`study.metrics.suite.all_metrics`).
+        metric -> figure judged against the reference (`study.metrics.judging.all_metrics`).
     a, b : dict
         The same judged against the reference's independent halves A and B.
 
