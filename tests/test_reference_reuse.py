@@ -202,3 +202,27 @@ def test_the_spinning_objects_polyhedron_holds_its_bounding_sphere():
     u /= np.linalg.norm(u, axis=1, keepdims=True)
     assert (u @ eq[:, :3].T + eq[:, 3]).max() <= 0
     assert np.linalg.norm(pts, axis=1).max() < 1.1       # and not much more than it
+
+
+def test_the_study_reads_an_instants_reference_with_the_settings_its_plan_rendered_it_with(tmp_path, monkeypatch):
+    """The report reaches a reference through Study.reference: it must ask the cache with the
+    settings the plan rendered that instant with. An instant refined alone starts a chain of its
+    own (`reuse_since`); asked without it, the cache finds nothing and renders the chain again
+    from frame 0 (the report of a quick study once re-rendered its ghosting references so)."""
+    from study.config.techniques import TechniqueConfig
+    from study.engine.runner import Study
+    from study.engine.tasks import load_scene
+    s = Study("quick", cache_root=tmp_path, progress=False)
+    s.levels[("sphere_ghosting", "ghosting", 3)] = 2
+    ghosts = s.plan(["sphere_ghosting"], [TechniqueConfig.parse("FXAA=fxaa")], agreement=False)[3]
+    asked = []
+    monkeypatch.setattr(s.cache, "get", lambda scene, t, w, h, **kw: (asked.append((t, kw)) or (None, True)))
+    test = next(g for g in ghosts if g.protocol.name == "ghosting")
+    scene = load_scene("sphere_ghosting")
+    for t in sorted(test.ref_settings_at):
+        s.reference(scene, t, test.width, test.height, "ghosting")
+    assert asked == [(t, test.ref_settings_at[t]) for t in sorted(test.ref_settings_at)]
+    assert any(kw.get("reuse_since") == 3 for _, kw in asked)
+    asked.clear()
+    s.reference(scene, 500, test.width, test.height, "ghosting")      # judged by no test: rendered whole
+    assert "reuse" not in asked[0][1] and "reuse_since" not in asked[0][1]

@@ -56,6 +56,7 @@ class Study:
         # own where it was refined alone (study.engine.precision)
         self.levels: dict[tuple, int] = {}
         self.drifts: dict = {}
+        self._tests: dict = {}        # (scene name, protocol name) -> its Test in the latest plan
 
     def settings_for(self, name: str, protocol: str | None = None, t: int | None = None) -> dict:
         """The settings of a test's references at its current precision level, at instant t that
@@ -91,7 +92,14 @@ class Study:
         return tuple(r) if isinstance(r, (tuple, list)) else scene.resolution(r)
 
     def reference(self, scene: ResolvedScene, t: int, w: int, h: int, protocol: str | None = None):
-        return self.cache.get(scene, t, w, h, **self.settings_for(scene.name, protocol, t))[0]
+        """Instant t's reference as the plan rendered it: with its test's settings there, which say
+        where its chain of reused frames starts (reuse_chain.chain_reuse; other settings would render the
+        chain again); an instant no test judges, whole."""
+        test = self._tests.get((scene.name, protocol or self.profile.static.name))
+        settings = test.ref_settings_at.get(t) if test is not None else None
+        if settings is None:
+            settings = {k: v for k, v in self.settings_for(scene.name, protocol, t).items() if k != "reuse"}
+        return self.cache.get(scene, t, w, h, **settings)[0]
 
     def display(self, scene: ResolvedScene, t: int, w: int, h: int):
         """Frame t's display transform (study.engine.tasks.display_of)."""
@@ -145,6 +153,7 @@ class Study:
             if planner.is_final((scene.name, st.name)):
                 planner.add_agreement(spec, scene, w, h, st.name)
         self.planner = planner
+        self._tests = {(test.scene, test.protocol.name): test for test in statics + ghosts}
         return planner.plan, scenes, statics, ghosts, sweeps, sharpens
 
     def run(self, specs: list[str], configs: list[TechniqueConfig], agreement: bool = True,
