@@ -182,10 +182,14 @@ def test_a_ghosting_tests_references_chain_over_runs_of_frames_at_one_setting(tm
     for t in (1, 2, 4):
         assert deps[t] == (pl.reference_key(scene, t - 1, 32, 18, base),)
     # at settings of their own, frames 3 and 4 chain; frame 5 at the display's starts after them
-    at = chain_reuse({t: finer if t in (3, 4) else base for t in range(6)}, {**FAST, "reuse": True})
+    at = chain_reuse({t: finer if t in (3, 4) else base for t in range(6)}, ({**FAST, "reuse": True},))
     assert at[3] == at[4] == {**finer, "reuse_since": 3} and at[5] == base
-    at = chain_reuse({t: finer if t in (3, 4) else base for t in range(6)}, FAST)
+    at = chain_reuse({t: finer if t in (3, 4) else base for t in range(6)}, (FAST,))
     assert at[2] == base and at[5] == {**base, "reuse_since": 5}
+    # the test's own settings chain over the whole run, through the instants refined alone: their
+    # refinement re-keys no other instant (frame 5 reuses frame 4's reference at the test's own)
+    at = chain_reuse({t: finer if t in (3, 4) else base for t in range(6)}, (FAST, base))
+    assert at[2] == at[5] == base and at[3] == at[4] == {**finer, "reuse_since": 3}
     off = Planner(Context(str(tmp_path), 1), FAST, None, {}, FAST)
     t_off = off.add_test("sphere_ghosting", scene, proto, fx, 32, 18)
     assert all(off.plan.tasks[k].deps == () for k in t_off.reference_tasks.values())
@@ -213,6 +217,7 @@ def test_the_study_reads_an_instants_reference_with_the_settings_its_plan_render
     from study.engine.runner import Study
     from study.engine.tasks import load_scene
     s = Study("quick", cache_root=tmp_path, progress=False)
+    s.ref_settings["reuse"] = True
     s.levels[("sphere_ghosting", "ghosting", 3)] = 2
     ghosts = s.plan(["sphere_ghosting"], [TechniqueConfig.parse("FXAA=fxaa")], agreement=False)[3]
     asked = []

@@ -197,7 +197,7 @@ class Planner:
         test = Test(scene.name, spec, protocol, list(configs), w, h, ref_settings=settings)
         kept_t = sorted({s.t for s in schedule if s.keep})
         at = test.ref_settings_at = chain_reuse({t: self.settings(scene, protocol.name, t) for t in kept_t},
-                                                self.display_settings)
+                                                (self.display_settings, settings))
         ref_keys = {t: self.reference_key(scene, t, w, h, at[t]) for t in kept_t}
         disp_keys = {t: self.reference_key(scene, t, w, h, self.display_settings) for t in kept_t}
         missing, steps = [], {}

@@ -3,12 +3,15 @@ where each of a test's references starts its chain (study.engine.plan plans them
 from __future__ import annotations
 
 
-def chain_reuse(at: dict, everywhere: dict | None = None) -> dict:
+def chain_reuse(at: dict, whole: tuple = ()) -> dict:
     """A test's references by instant (`at`: scene time -> settings), each chain of references that
     keep the previous frame's pixels (settings `reuse`, references.reuse) confined to a run of
-    consecutive instants at equal settings, or at `everywhere` (the display's, planned at every
-    instant): an instant whose predecessor is neither (one the precision rule refines alone)
-    starts a chain (`reuse_since`), so no reference is rendered only to be reused."""
+    consecutive instants at equal settings, or, at settings in `whole`, over the whole run of
+    consecutive instants: the display's (planned at every instant) and the test's own (which its
+    first round rendered at every instant), so an instant the precision rule refines alone
+    changes no other instant's reference (nor its figures, study.engine.judge.FrameFigures).
+    Such an instant starts a chain of its own (`reuse_since`) unless its predecessor is at its
+    settings, so no finer reference is rendered only to be reused."""
     out, prev, run = {}, None, None
     strip = lambda d: {k: v for k, v in d.items() if k != "reuse_since"}    # noqa: E731
     for t in sorted(at):
@@ -16,7 +19,7 @@ def chain_reuse(at: dict, everywhere: dict | None = None) -> dict:
         s = dict(at[t])
         base = strip(s)
         if s.get("reuse"):
-            if everywhere is not None and base == strip(everywhere):
+            if any(base == strip(w) for w in whole):
                 start = run
             else:
                 start = prev[1] if prev is not None and prev[0] == t - 1 and prev[2] == base else t
