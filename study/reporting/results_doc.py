@@ -156,9 +156,10 @@ def _figure(test: dict, label: str, n: int, where: str):
     return float(v), (None if u is None else float(u))
 
 
-def thesis_table(study: StudyFiles) -> Table | None:
+def thesis_table(study: StudyFiles, first_view_only: bool = False) -> Table | None:
     """The static test's PSNR ± reference under the thesis's five columns, per scene and protocol
-    (the headline's rows; None where the study has none of the columns)."""
+    (the headline's rows; None where the study has none of the columns); `first_view_only`: the
+    thesis's own protocol alone (the README's short form)."""
     from study.config.profile import view_history
     cols = roles(study)
     if not cols:
@@ -175,7 +176,7 @@ def thesis_table(study: StudyFiles) -> Table | None:
             continue
         if not isinstance(t.get("techniques"), dict):
             raise ResultsError(f"{FIGURES}: tests[{i}] has no techniques")
-        for vlabel, n in views:
+        for vlabel, n in views[:1] if first_view_only else views:
             cells = []
             for c in THESIS_COLUMNS:
                 if c not in cols:
@@ -218,8 +219,9 @@ def results_markdown(study: StudyFiles) -> str:
 
 
 def readme_block(study: StudyFiles, doc_link: str) -> str:
-    """The README's results block (the lines between its markers)."""
-    t = thesis_table(study)
+    """The README's results block (the lines between its markers): the thesis's protocol and the
+    verdicts; the converged control and every other technique are the document's."""
+    t = thesis_table(study, first_view_only=True)
     return "\n".join([provenance(study).replace("Do not edit: run the command again.",
                                                 f"The whole of it: [{doc_link}]({doc_link})."), "",
                       t.markdown() if t else "This study ran none of the thesis's columns.\n",
