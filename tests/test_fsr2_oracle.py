@@ -12,19 +12,10 @@ import backend  # noqa: F401
 from backend import array, dr, mi
 
 import oracle_fsr2 as O
+from test_fsr2 import _img, _np
 from taa_impl import fsr2_passes as P
 from taa_impl import kernels as K
 from taa_impl.upscale import Frames
-
-
-def _img(a):
-    a = np.asarray(a, np.float32)
-    return dr.unravel(mi.Color3f, array(mi.Float, a)) if a.ndim == 3 else array(mi.Float, a)
-
-
-def _np(x, h, w):
-    return np.asarray(dr.ravel(x) if isinstance(x, mi.Color3f) else x, np.float64).reshape(
-        (h, w, 3) if isinstance(x, mi.Color3f) else (h, w))
 
 
 def _rcas_image(seed, h=12, w=16):

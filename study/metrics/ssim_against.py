@@ -11,7 +11,7 @@ from backend import dr
 from study.metrics import checks
 from study.metrics import filters as jf
 from study.metrics.ssim import K1, K2, check_pair
-from study.metrics.ssim_passes import _frame_of, _mixed_ssim, _ssim_formula
+from study.metrics.ssim_passes import _channel_sum, _frame_of, _mixed_ssim
 from study.metrics.ssim_window import SIGMA, channel_mixing, matlab_radius, skimage_radius
 # -- one image judged against several references (a technique frame against a reference and its
 # two halves; many technique frames against one reference) ------------------------------------------
@@ -81,10 +81,7 @@ def _combine(mr: list, mx: list, xy: list, sigma: float, volume: bool, c1: float
     stats = []
     for c in range(3):
         stats += [mr[c], mx[c], mr[3 + c], mx[3 + c], xy[c]]
-    s = None
-    for c in range(3):
-        sc = _ssim_formula(*stats[5 * c:5 * c + 5], c1, c2)
-        s = sc if s is None else s + sc
+    s = _channel_sum(stats, c1, c2)
     if not volume:
         return s, s
     return s, _mixed_ssim(stats, channel_mixing(jf.gaussian_weights(sigma, matlab_radius(sigma))), c1, c2)

@@ -10,11 +10,23 @@ from backend import dr
 
 from study.metrics import filters as jf
 from study.metrics.ssim_window import channel_mixing, matlab_radius, skimage_radius
+
+
 def _ssim_formula(ux, uy, uxx, uyy, uxy, c1, c2):
     vx = uxx - ux * ux
     vy = uyy - uy * uy
     vxy = uxy - ux * uy
     return ((2.0 * ux * uy + c1) * (2.0 * vxy + c2)) / ((ux * ux + uy * uy + c1) * (vx + vy + c2))
+
+
+def _channel_sum(v: list, c1: float, c2: float):
+    """The sum over R, G, B of each channel's SSIM map, from its five statistics (v[5c:5c + 5]:
+    the two means, the two second moments and the cross moment, in _ssim_quantities' order)."""
+    s = None
+    for c in range(3):
+        sc = _ssim_formula(*v[5 * c:5 * c + 5], c1, c2)
+        s = sc if s is None else s + sc
+    return s
 
 
 def _frame_pixels(lay: jf.Layout, r: int):
@@ -114,10 +126,7 @@ def _ssim_core(lay: jf.Layout, planes: list, sigma: float, volume: bool, c1: flo
     hs = jf.hpass(lay, planes, _ssim_quantities, filters, prec)
     vs = jf.vpass(lay, hs, [jf.Filter(i, f.weights, f.border) for i, f in enumerate(filters)], prec)
     del hs
-    s = None
-    for c in range(3):
-        sc = _ssim_formula(*vs[5 * c:5 * c + 5], c1, c2)
-        s = sc if s is None else s + sc
+    s = _channel_sum(vs, c1, c2)
     if not volume:
         return s, s
     mix = channel_mixing(jf.gaussian_weights(sigma, rv))

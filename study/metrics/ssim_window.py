@@ -11,6 +11,8 @@ from study.metrics import filters as jf
 
 SIGMA = 1.5
 SKIMAGE_TRUNCATE = 3.5
+
+
 def skimage_radius(sigma: float = SIGMA) -> int:
     """Radius of scikit-image's Gaussian window, int(truncate * sigma + 0.5), truncate 3.5.
 
