@@ -1,9 +1,9 @@
 """AA techniques, vectorised with Dr.Jit. `make(name, **overrides)` builds one by registry name.
 
-Every technique: `needs` (buffers read), `params` (frozen, hashable), `sampling` and
-`output_space` (how a study drives it and what it returns; see taa_impl.base), `reset()`,
-`process(frame, *, jitter, far, reset=False, display=None) -> (H, W, 3) float32`; the
-accumulation buffer also has `process_samples(frames)`.
+Every technique: `params` (frozen, hashable), `inputs` (what a driver must hand it: buffers,
+sampling, output space, cameras, ...; taa_impl.contract.Inputs, readable without building it as
+`TECHNIQUES[name].inputs_for(params)`), `reset()`, and one entry point `process(frame) -> (H, W, 3)
+float32` for a taa_impl.contract.Frame (or `process(buffers, jitter=..., far=..., ...)`).
 
 Registry: 'noaa', 'accumulation', 'fxaa', 'taa_baseline', 'taa_improved', and named presets of the
 baseline TAA's extensions (taa_impl/baseline.py), each the baseline with some TAAParams switches on:
@@ -14,8 +14,8 @@ baseline TAA's extensions (taa_impl/baseline.py), each the baseline with some TA
   taa_reject         reject_depth=0.05, reject_id=True
   taa_ycocg_variance box='ycocg', variance_clip_gamma=1.0, history_filter='catmull_rom',
                      tonemap_blend=True
-Also 'taa_sparse' (sparse supersampling of invalid pixels, Li, Chen, Zhang 2021; driven with supersampled= and
-mask=, see taa_impl.sparse) and Ferrando's TAA (Ferrando 2018; needs cameras=, see taa_impl.ferrando):
+Also 'taa_sparse' (sparse supersampling of invalid pixels, Li, Chen, Zhang 2021; its frames carry supersampled
+and mask, see taa_impl.sparse) and Ferrando's TAA (Ferrando 2018; its frames carry cameras, see taa_impl.ferrando):
   taa_ferrando_text          history_weight=0.95, clamp='current'
   taa_ferrando_code          history_weight=0.6, clamp='history'
   taa_ferrando_code_noclamp  history_weight=0.3, clamp='none'
@@ -27,7 +27,8 @@ from __future__ import annotations
 from typing import Callable
 
 from .base import (FEEDBACK_PRESETS, OUTPUT_SPACES, SAMPLING_MODES, SHARPEN_KERNELS, TAAParams,
-                   Technique)
+                   Technique, build_params)
+from .contract import Frame, Inputs
 from .baseline import BaselineTAA
 from .fxaa import ENCODED, FXAA, FXAA_QUALITY_PRESETS, FXAAParams
 from .improved import ImprovedParams, ImprovedTAA
@@ -45,9 +46,15 @@ class Preset:
 
     def __init__(self, name: str, cls: type, **defaults):
         self.name, self.cls, self.defaults = name, cls, dict(defaults)
-        self.needs = cls(**defaults).needs     # validates the defaults; switches can add buffers
-        self.sampling, self.output_space = cls.sampling, cls.output_space
         self.Params = cls.Params
+        # validates the defaults; switches can add buffers
+        self.inputs: Inputs = cls.inputs_for(build_params(cls.Params, None, None, **defaults))
+        self.needs, self.sampling = self.inputs.buffers, self.inputs.sampling
+        self.output_space, self.upsamples = self.inputs.output_space, self.inputs.upsamples
+
+    def inputs_for(self, params=None) -> Inputs:
+        """As Technique.inputs_for, with this preset's defaults when `params` is None."""
+        return self.inputs if params is None else self.cls.inputs_for(params)
 
     def __call__(self, params=None, **overrides) -> Technique:
         kwargs = overrides if params is not None else {**self.defaults, **overrides}
@@ -100,7 +107,7 @@ def make(name: str, **overrides) -> Technique:
     return factory(**overrides)
 
 
-__all__ = ["TECHNIQUES", "PRESETS", "Preset", "make", "Technique", "TAAParams", "ImprovedParams",
+__all__ = ["TECHNIQUES", "PRESETS", "Preset", "make", "Technique", "Frame", "Inputs", "TAAParams", "ImprovedParams",
            "BaselineTAA", "ImprovedTAA", "NoAA", "NoAAParams", "Accumulation", "AccumulationParams",
            "FXAA", "FXAAParams", "FXAA_QUALITY_PRESETS", "ENCODED", "FEEDBACK_PRESETS",
            "SHARPEN_KERNELS", "SAMPLING_MODES", "OUTPUT_SPACES", "SparseTAA", "SparseParams",

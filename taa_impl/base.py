@@ -1,44 +1,27 @@
 """The `Technique` interface every AA technique implements, and the parameters the TAAs share.
 
-A technique declares the buffers it reads (`needs`), keeps its history explicitly (so a study can
-reset it at a camera cut) and is a pure function of (its parameters, its history, the frame): the
-same inputs give the same output bit for bit. Parameters are a frozen dataclass so a study can hash
+A technique declares what it needs as data (`contract`, an `Inputs`, refined from its parameters by
+`inputs_for`; taa_impl.contract), keeps its history explicitly (so a study can reset it at a camera
+cut) and is a pure function of (its parameters, its history, the frame): the same inputs give the
+same output bit for bit. It has one entry point, `process(frame)`, given a `Frame` (or a mapping of
+buffers and the frame's fields as keywords); a subclass implements the hook `_step(b, frame)` on the
+validated frame's buffers as Dr.Jit arrays. Parameters are a frozen dataclass so a study can hash
 them into a cache key.
-
-How a study drives a technique (class attributes, read by the driver):
-
-`sampling` -- which raster frames it is given:
-  'centre'      one frame rendered with zero jitter (samples at pixel centres), one `process` call
-                per output (No AA, FXAA). Stateless techniques.
-  'sequence'    frame k rendered with `scenes.jitter.halton_offset(k, 16)` (TAA_PERIOD), one
-                `process` call per frame, history carried between calls; reset at camera cuts
-                (`reset=True`) and on any resolution change (TAAs).
-  'supersample' `params.samples` sub-frames of the *same* scene time, sub-frame j rendered with
-                `halton_offset(j, params.samples)`, all passed at once to `process_samples(frames)`
-                (accumulation buffer / SSAA); `process` also accepts them one at a time.
-
-`output_space` -- what the returned (H, W, 3) float32 image is:
-  'linear'      linear HDR Rec.709 (the default); the driver applies the display transform
-                (`display.DisplayTransform.encode` / `to_8bit`) once, as for the reference.
-  'display'     already display-encoded: the technique was given the frame's DisplayTransform as
-                `process(..., display=dt)`, applied `dt.encode` itself (tone map + sRGB, floats in
-                [0, 1]) and worked on that (FXAA). The driver must *not* tone-map it again; 8 bits
-                is `np.round(img * 255)`, exactly what `DisplayTransform.to_8bit` does after encode.
-`process` takes `display=` for every technique; 'linear' techniques ignore it, 'display' ones need it.
 """
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import math
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Mapping
 
 import numpy as np
 
 import backend  # noqa: F401  (selects libLLVM and the Mitsuba variant before drjit loads)
 from backend import array, dr, mi
 
-from . import sanitize
+from .contract import OUTPUT_SPACES, SAMPLING_MODES, Frame, Inputs, as_frame, checked
 
 # Feedback presets (k_min, k_max) of the luminance feedback (Oliveros 2018, §3.6.3).
 FEEDBACK_PRESETS: dict[str, tuple[float, float]] = {
@@ -80,8 +63,6 @@ def check_sharpen(sharpen) -> None:
 
 BOX_SPACES = ("minmax", "ycocg")
 HISTORY_FILTERS = ("bilinear", "catmull_rom", "catmull_rom_5")
-SAMPLING_MODES = ("centre", "sequence", "supersample")
-OUTPUT_SPACES = ("linear", "display")
 
 
 @dataclass(frozen=True)
@@ -170,50 +151,66 @@ def build_params(cls: type, params: Any = None, feedback: str | None = None, **o
     return dataclasses.replace(p, **overrides) if overrides else p
 
 
-@dataclass(frozen=True)
-class Inputs:
-    """What a technique takes, as a render pass declares its inputs (module docstring)."""
-    buffers: frozenset          # raster buffers read
-    sampling: str               # 'centre' | 'sequence' | 'supersample'
-    display: bool               # the frame's DisplayTransform (built from the reference)
-    cameras: bool               # current and previous camera states
-    extra_samples: int          # supersampled samples per pixel its mask asks for (0: none)
-    subframes: int              # jittered sub-frames per output ('supersample'), else 1
-    render_scale: float = 1.0   # the raster renders render_size(output, render_scale) (taa_impl.upscale)
-    upsamples: bool = False     # process(..., output_size=(W, H)): renders below the output's size
-    jitter_period: int = 16     # 'sequence': frame k is jittered by halton_offset(k, jitter_period)
+class _Declared:
+    """A field of the technique's `Inputs`, read on the class (its default parameters' inputs) or on
+    an instance (its own): `FXAA.output_space`, `tech.needs`."""
 
-    def shaded_samples(self, extra_fraction: float = 0.0) -> float:
-        """Samples shaded per output pixel per output frame; `extra_fraction`: share of masked pixels.
-        An upscaler shades render_scale^2 per output pixel."""
-        return (float(self.subframes) + self.extra_samples * extra_fraction) * self.render_scale ** 2
+    def __init__(self, field: str):
+        self.field = field
+
+    def __get__(self, obj, cls):
+        return getattr(cls.inputs_for() if obj is None else obj.inputs, self.field)
+
+
+# The older spelling of a declaration, still read from a researcher's class: attribute -> Inputs field.
+_LEGACY = {"needs": "buffers", "sampling": "sampling", "output_space": "output_space", "upsamples": "upsamples"}
 
 
 class Technique:
-    """Base class: buffer validation, non-finite input repair, NumPy <-> Dr.Jit, history reset."""
+    """Base class: the contract, the one entry point `process`, validation and repair of the inputs
+    (taa_impl.contract.checked), NumPy <-> Dr.Jit, history reset.
+
+    A subclass declares `name`, `Params`, `contract` (an `Inputs`; `inputs_for` when it depends on
+    the parameters) and implements `_clear_history` and `_step(b, frame)`: `b` the frame's buffers as
+    flat Dr.Jit arrays, `frame` the validated `Frame`; it returns the output colour (mi.Color3f at the
+    output size) and updates the history. `needs`, `sampling`, `output_space` and `upsamples` read
+    the contract."""
 
     name: ClassVar[str] = "technique"
-    needs: ClassVar[frozenset[str]] = frozenset({"color"})
     Params: ClassVar[type] = TAAParams
-    sampling: ClassVar[str] = "centre"        # one of SAMPLING_MODES (module docstring)
-    output_space: ClassVar[str] = "linear"    # one of OUTPUT_SPACES (module docstring)
-    needs_cameras: bool = False               # process(..., cameras=(current, previous))
-    supersampling: bool = False               # process(..., supersampled=, mask=) (sparse SS)
+    contract: ClassVar[Inputs] = Inputs()
+    needs = _Declared("buffers")
+    sampling = _Declared("sampling")
+    output_space = _Declared("output_space")
+    upsamples = _Declared("upsamples")
 
-    @property
-    def inputs(self) -> "Inputs":
-        """Everything a driver must hand this technique, declared in one place."""
-        n = int(getattr(self.params, "samples", 1))
-        return Inputs(buffers=frozenset(self.needs), sampling=self.sampling,
-                      display=self.output_space == "display", cameras=bool(self.needs_cameras),
-                      extra_samples=n if self.supersampling else 0,
-                      subframes=n if self.sampling == "supersample" else 1)
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        legacy = {f: cls.__dict__[a] for a, f in _LEGACY.items() if a in cls.__dict__}
+        if legacy:      # `needs = ...` and the like: folded into the class's contract
+            for a in _LEGACY:
+                if a in cls.__dict__:
+                    delattr(cls, a)
+            cls.contract = dataclasses.replace(cls.contract, **legacy)
+        step = cls.__dict__.get("_step")
+        if step is not None and len(inspect.signature(step).parameters) == 5:
+            def _step(self, b, frame, _legacy=step):    # the older hook _step(b, width, height, far)
+                return _legacy(self, b, *frame.size, frame.far)
+            cls._step = _step
+
+    @classmethod
+    def inputs_for(cls, params: Any = None) -> Inputs:
+        """What a driver must hand this technique with `params` (default: its Params' defaults),
+        without building it. The class's `contract` unless a subclass derives it from the params."""
+        return cls.contract
 
     def __init__(self, params=None, *, feedback: str | None = None, **overrides):
         self.params = build_params(self.Params, params, feedback, **overrides)
+        self.inputs: Inputs = type(self).inputs_for(self.params)
         self.last_nonfinite_count = 0          # non-finite input pixels repaired in the last frame
         self.last_nonfinite: dict[str, int] = {}
         self.last_jitter: tuple[float, float] | None = None
+        self.last_stats: dict = {}             # the last frame's counters, recorded by the driver
         self._shape: tuple[int, int] | None = None
         self.reset()
 
@@ -229,40 +226,62 @@ class Technique:
         raise NotImplementedError
 
     # -- per frame -----------------------------------------------------------------------------
-    def process(self, frame: dict, *, jitter, far: float, reset: bool = False,
-                display=None) -> np.ndarray:
-        """One frame in, the displayed (H, W, 3) float32 image out; updates the history.
+    def process(self, frame: Frame | Mapping | None = None, /, **fields) -> np.ndarray:
+        """One output frame in, the displayed (H, W, 3) float32 image out; updates the history.
 
-        `display` (a display.DisplayTransform) is required by output_space='display' techniques
-        and ignored by 'linear' ones."""
-        if self.output_space == "display" and display is None:
-            raise ValueError(f"{self.name} works on the display image: pass display=DisplayTransform")
-        far = float(far)
-        if not (math.isfinite(far) and far > 0):
-            raise ValueError(f"far must be finite and > 0, got {far}")
-        jx, jy = (float(v) for v in jitter)
-        self.last_jitter = (jx, jy)  # informational: the sample is used where it was taken
-        missing = self.needs - frame.keys()
-        if missing:
-            raise KeyError(f"{self.name} needs buffers {sorted(missing)}")
-        h, w = np.shape(frame["color"])[:2]
-        bufs = sanitize.check_and_repair(frame, self.needs, (h, w), far)
-        self.last_nonfinite = bufs.pop("_nonfinite")
+        Parameters
+        ----------
+        frame : Frame or mapping of str to ndarray
+            A `Frame`, or its buffers with the other fields of `Frame` as keywords
+            (`process(buffers, jitter=(jx, jy), far=100.0, reset=True)`).
+        **fields
+            Fields of `Frame` (replacing a given Frame's).
+
+        Returns
+        -------
+        ndarray
+            (H, W, 3) float32 at the output size, in the contract's output space. A frame with
+            `samples` (sampling 'supersample') restarts the history and steps every sub-frame in
+            turn; its output is the last step's.
+        """
+        frame = as_frame(frame, fields)
+        if not frame.samples:
+            return self._frame(frame)
+        subs = tuple(frame.samples)
+        shapes = {np.shape(s["color"])[:2] for s in subs}
+        if len(shapes) != 1:
+            raise ValueError(f"sub-frames of one output must share a resolution, got {sorted(shapes)}")
+        self.reset()
+        total, out = 0, None
+        for bufs in subs:
+            out = self._frame(dataclasses.replace(frame, buffers=bufs, samples=(), reset=False))
+            total += self.last_nonfinite_count
+        self.last_nonfinite_count = total
+        return out
+
+    def _frame(self, frame: Frame) -> np.ndarray:
+        frame, self.last_nonfinite = checked(frame, self.inputs, self.name)
         self.last_nonfinite_count = sum(self.last_nonfinite.values())
-        if self._shape != (h, w):  # a resolution change invalidates the history
+        self.last_jitter = frame.jitter  # informational: the sample is used where it was taken
+        w, h = frame.output_size
+        if self._shape != (h, w):  # a change of the output's size invalidates the history
             self.reset()
             self._shape = (h, w)
-        if reset:
+        if frame.reset:
             self.reset()
-        bufs = self._prepare(bufs, display)
-        out = self._step(to_drjit(bufs), w, h, far)
+        out = self._step(to_drjit(self._prepare(frame)), frame)
         return from_drjit_color(out, h, w)
 
-    def _prepare(self, bufs: dict[str, np.ndarray], display) -> dict[str, np.ndarray]:
-        """NumPy-side preparation of the (validated, repaired) buffers; the default is none."""
-        return bufs
+    def invalid_mask(self, frame: Frame | Mapping | None = None, /, **fields) -> np.ndarray | None:
+        """(H, W) bool: this frame's pixels that need the supersampled colour (a contract with
+        `extra_samples`), computed without changing any state; None for a technique without."""
+        return None
 
-    def _step(self, bufs: dict, width: int, height: int, far: float):
+    def _prepare(self, frame: Frame) -> dict[str, np.ndarray]:
+        """NumPy-side preparation of the (validated, repaired) buffers; the default is none."""
+        return frame.buffers
+
+    def _step(self, b: dict, frame: Frame):
         raise NotImplementedError
 
 
@@ -306,9 +325,7 @@ class DisplayImageTechnique(Technique):
     """A single-image post-process on the display image (FXAA, SMAA): the driver renders the
     unjittered frame, the colour is display-encoded here, and `kernel(grid, rgb, params)` returns
     the output and its per-pixel intermediates."""
-    needs: ClassVar[frozenset[str]] = frozenset({"color"})
-    sampling: ClassVar[str] = "centre"
-    output_space: ClassVar[str] = "display"
+    contract = Inputs(buffers={"color"}, sampling="centre", output_space="display")
 
     @staticmethod
     def kernel(grid, rgb, params):
@@ -318,13 +335,14 @@ class DisplayImageTechnique(Technique):
         self._grid = None
         self._terms: dict = {}
 
-    def _prepare(self, bufs, display):
-        bufs = dict(bufs)
-        bufs["color"] = np.ascontiguousarray(display.encode(bufs["color"]), dtype=np.float32)
+    def _prepare(self, frame):
+        bufs = dict(frame.buffers)
+        bufs["color"] = np.ascontiguousarray(frame.display.encode(bufs["color"]), dtype=np.float32)
         return bufs
 
-    def _step(self, b: dict, w: int, h: int, far: float):
+    def _step(self, b: dict, frame):
         from . import kernels as K
+        w, h = frame.size
         if self._grid is None or (self._grid.w, self._grid.h) != (w, h):
             self._grid = K.Grid(w, h)
         out, self._terms = type(self).kernel(self._grid, b["color"], self.params)

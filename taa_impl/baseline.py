@@ -43,13 +43,15 @@ default is off (= the baseline above, bit for bit). They compose in this order, 
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 import backend  # noqa: F401
 from backend import dr, mi
 
 from . import kernels as K
-from .base import TAAParams, Technique, from_drjit_color, sharpen_weight, terms_to_numpy
+from .base import Frame, Inputs, TAAParams, Technique, from_drjit_color, sharpen_weight, terms_to_numpy
 
 
 def fetch_history(params: TAAParams, grid: K.Grid, history, velocity):
@@ -85,16 +87,14 @@ def resolve(params: TAAParams, grid: K.Grid, c, history, velocity, bmin, bmax, r
 class TAATechnique(Technique):
     """Shared plumbing of the TAAs: colour history, a cached pixel grid, debug terms, rejection."""
 
-    sampling = "sequence"
+    contract = Inputs(sampling="sequence")
 
-    def __init__(self, params=None, *, feedback: str | None = None, **overrides):
-        super().__init__(params, feedback=feedback, **overrides)
-        extra = set()
-        if self.params.reject_depth is not None:
-            extra.add("prev_depth")
-        if self.params.reject_id:
-            extra.add("object_id")
-        self.needs = frozenset(type(self).needs | extra)  # this instance's buffers
+    @classmethod
+    def inputs_for(cls, params=None) -> Inputs:
+        """The class's contract plus the buffers its rejection tests read."""
+        p = params if params is not None else cls.Params()
+        extra = ({"prev_depth"} if p.reject_depth is not None else set()) | ({"object_id"} if p.reject_id else set())
+        return dataclasses.replace(cls.contract, buffers=cls.contract.buffers | extra) if extra else cls.contract
 
     def _clear_history(self) -> None:
         self._history = None  # mi.Color3f: last unsharpened blend
@@ -152,8 +152,8 @@ class BaselineTAA(TAATechnique):
     box_min / box_max / box_avg are in the box space (YCoCg when box='ycocg'; box_avg is mu with
     a variance box)."""
     name = "taa_baseline"
-    needs = frozenset({"color", "depth", "motion"})
     Params = TAAParams
+    contract = Inputs(buffers={"color", "depth", "motion"}, sampling="sequence")
 
     def _box(self, grid, c):
         """Neighbourhood box (min, max, mean) in the box space: min/max of 3x3 and cross, or
@@ -169,21 +169,30 @@ class BaselineTAA(TAATechnique):
                 bmin, bmax = vmin, vmax
         return bmin, bmax, bavg
 
-    def _step(self, b: dict, w: int, h: int, far: float):
-        p = self.params
-        grid = self._grid_for(w, h)
-        c = b["color"]
+    def _velocity(self, grid: K.Grid, b: dict):
+        """Step 1: the closest-depth 3x3 pixel and its motion."""
         best_i = K.closest_index(grid, b["depth"])
-        velocity = dr.gather(mi.Vector2f, b["motion"], best_i)
+        return best_i, dr.gather(mi.Vector2f, b["motion"], best_i)
+
+    def _composite(self, grid: K.Grid, b: dict, frame: Frame, blend, velocity, reject):
+        """The new history from the blend (a hook, taa_impl.sparse): (history, its debug terms)."""
+        return blend, {}
+
+    def _step(self, b: dict, frame: Frame):
+        p = self.params
+        grid = self._grid_for(*frame.size)
+        c = b["color"]
+        best_i, velocity = self._velocity(grid, b)
         reject = self._rejection(grid, b, best_i, velocity)
         bmin, bmax, bavg = self._box(grid, c)
         blend, valid = resolve(p, grid, c, self._history, velocity, bmin, bmax, reject)
-        dr.eval(blend)
-        self._history = blend
+        history, extra = self._composite(grid, b, frame, blend, velocity, reject)
+        dr.eval(history)
+        self._history = history
         self._terms = {"velocity": velocity, "box_min": bmin, "box_max": bmax, "box_avg": bavg,
                        "history_valid": mi.Float(dr.select(valid, 1.0, 0.0)) if valid is not None
                        else dr.zeros(mi.Float, grid.n),
-                       "blend": blend}
+                       "blend": blend, **extra}
         if reject is not None:
             self._terms["history_rejected"] = mi.Float(dr.select(reject, 1.0, 0.0))
-        return K.sharpen(grid, blend, sharpen_weight(p.sharpen))
+        return K.sharpen(grid, history, sharpen_weight(p.sharpen))

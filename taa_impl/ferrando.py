@@ -54,7 +54,7 @@ Presets (registry):
   taa_ferrando_code          history_weight 0.60, clamp 'history' -- the §5.5 shader as printed
                              (the clamp a no-op), motion sign and y fixed
   taa_ferrando_code_noclamp  history_weight 0.30, clamp 'none'    -- the §5.4 shader
-All use camera-only motion from depth (needs_cameras; process(..., cameras=(current, previous))).
+All use camera-only motion from depth (their contract's `cameras`: Frame.cameras = (current, previous)).
 `motion_source='buffer'` uses the frame's motion buffer instead (an ablation of that choice).
 """
 from __future__ import annotations
@@ -67,7 +67,7 @@ import backend  # noqa: F401
 from backend import array, dr, mi
 
 from . import kernels as K
-from .base import Technique, check_sharpen, sharpen_weight
+from .base import Frame, Inputs, check_sharpen, sharpen_weight
 from .baseline import TAATechnique
 
 CLAMPS = ("current", "history", "none")
@@ -156,47 +156,21 @@ def motion_from_depth(depth: np.ndarray, current, previous) -> np.ndarray:
 class FerrandoTAA(TAATechnique):
     """Fixed-weight single-history TAA with a 3x3 min/max clamp (module docstring)."""
     name = "taa_ferrando"
-    needs = frozenset({"color", "depth"})
     Params = FerrandoParams
-    sampling = "sequence"
-    needs_cameras = True
 
-    def __init__(self, params=None, *, feedback: str | None = None, **overrides):
-        Technique.__init__(self, params, feedback=feedback, **overrides)
-        cam = self.params.motion_source == "camera"
-        self.needs = frozenset({"color", "depth"} if cam else {"color", "motion"})
-        self.needs_cameras = cam
-        self._cameras = None
+    @classmethod
+    def inputs_for(cls, params=None) -> Inputs:
+        """Camera-only motion reads depth and both cameras; the ablation reads the motion buffer."""
+        cam = (params if params is not None else cls.Params()).motion_source == "camera"
+        return Inputs(buffers={"color", "depth"} if cam else {"color", "motion"}, sampling="sequence",
+                      cameras=cam)
 
-    def process(self, frame: dict, *, jitter, far: float, reset: bool = False, display=None,
-                cameras=None) -> np.ndarray:
-        """As Technique.process; `cameras=(current, previous)` CameraStates are required with
-        motion_source='camera' (ignored otherwise)."""
-        if self.needs_cameras:
-            if cameras is None:
-                raise ValueError(f"{self.name} reprojects with the cameras: pass "
-                                 f"cameras=(current CameraState, previous CameraState)")
-            if len(cameras) != 2:
-                raise ValueError("cameras must be (current, previous)")
-            cur, prev = cameras
-            _camera_check(cur, "current")
-            _camera_check(prev, "previous")
-            h, w = np.shape(frame["color"])[:2]
-            for c, which in ((cur, "current"), (prev, "previous")):
-                if (c.width, c.height) != (w, h):
-                    raise ValueError(f"{which} camera is {c.width}x{c.height}, frame is {w}x{h}")
-            self._cameras = (cur, prev)
-        try:
-            return super().process(frame, jitter=jitter, far=far, reset=reset, display=display)
-        finally:
-            self._cameras = None
-
-    def _step(self, b: dict, w: int, h: int, far: float):
+    def _step(self, b: dict, frame: Frame):
         p = self.params
-        grid = self._grid_for(w, h)
+        grid = self._grid_for(*frame.size)
         c = b["color"]
         if p.motion_source == "camera":
-            velocity = camera_motion(grid, b["depth"], *self._cameras)
+            velocity = camera_motion(grid, b["depth"], *frame.cameras)
         else:
             velocity = b["motion"]
         terms = {"velocity": velocity}

@@ -51,6 +51,7 @@ from backend import dr, mi
 
 from . import fsr2_passes as P
 from . import kernels as K
+from .base import Inputs
 from .upscale import Upscaler, check_scale, fsr2_phase_count, lanczos2_sample
 
 
@@ -95,16 +96,15 @@ class FSR2Params:
 
 class FSR2(Upscaler):
     name = "fsr2"
-    needs = frozenset({"color", "depth", "motion"})
     Params = FSR2Params
-    sampling = "sequence"
+    # cameras: the depth clip's Kfov, from the camera's field of view
+    contract = Inputs(buffers={"color", "depth", "motion"}, sampling="sequence", upsamples=True, cameras=True)
 
-    needs_cameras = True      # the depth clip's Kfov, from the camera's field of view
-
-    def jitter_period(self) -> int:
+    @classmethod
+    def jitter_period(cls, params) -> int:
         """FSR 2's phase count, int(8 ratio^2), of the ratio 1 / render_scale (8, 17, 13, 32 at
         scales 1, 0.67, 0.77, 0.5)."""
-        return fsr2_phase_count(1.0, 1.0 / self.params.render_scale)
+        return fsr2_phase_count(1.0, 1.0 / params.render_scale)
 
     def _clear_state(self) -> None:
         self._history = None      # linear RGB (not exposed), the unsharpened output
@@ -113,8 +113,9 @@ class FSR2(Upscaler):
         self._trust = None        # the luma a lock was made on
         self._lumas = None        # the three previous tone-mapped lumas, newest first
 
-    def _upscale(self, b, fr, far, jitter):
+    def _upscale(self, b, fr, frame, jitter):
         p = self.params
+        far = frame.far
         o = fr.output
         c = b["color"]
         # 1. exposure
@@ -123,7 +124,8 @@ class FSR2(Upscaler):
         dil_depth, dil_motion, prev_depth = P.reconstruct_and_dilate(fr, b["depth"], b["motion"], far)
         fresh = self._history is None
         if p.depth_clip and not fresh:
-            clip_r = P.depth_clip(fr, dil_depth, dil_motion, prev_depth, self._tan_half)
+            tan_half = tuple(float(v) for v in frame.cameras[0].tan_half)
+            clip_r = P.depth_clip(fr, dil_depth, dil_motion, prev_depth, tan_half)
         else:
             clip_r = dr.zeros(mi.Float, fr.render.n)
         near = fr.nearest()
@@ -209,12 +211,3 @@ class FSR2(Upscaler):
         if p.enable_sharpening:
             out = P.inverse_tonemap(P.rcas(o, out_t, 2.0 - 2.0 * p.sharpness))
         return dr.maximum(out, 0.0) / exposure
-
-    def process(self, frame, *, jitter, far, output_size=None, reset=False, display=None, cameras=None):
-        """As Upscaler.process; `cameras`: (current, previous) scenes.camera.CameraState, whose
-        field of view sets the depth clip's separation."""
-        if cameras is None:
-            raise ValueError("fsr2 needs cameras=(current, previous) for its depth clip")
-        self._tan_half = tuple(float(v) for v in cameras[0].tan_half)
-        return super().process(frame, jitter=jitter, far=far, output_size=output_size, reset=reset,
-                               display=display)

@@ -31,7 +31,7 @@ import backend  # noqa: F401
 from backend import dr, mi
 
 from . import kernels as K
-from .base import TAAParams, sharpen_weight
+from .base import Frame, Inputs, TAAParams, sharpen_weight
 from .baseline import TAATechnique, resolve
 
 
@@ -56,8 +56,8 @@ class ImprovedParams(TAAParams):
 
 class ImprovedTAA(TAATechnique):
     name = "taa_improved"
-    needs = frozenset({"color", "albedo", "depth", "prev_depth", "object_id", "motion"})
     Params = ImprovedParams
+    contract = Inputs(buffers={"color", "albedo", "depth", "prev_depth", "object_id", "motion"}, sampling="sequence")
 
     def _clear_history(self) -> None:
         super()._clear_history()
@@ -74,9 +74,10 @@ class ImprovedTAA(TAATechnique):
         k = K.feedback_weight(s_raw, hs, p.k_min, p.k_max, p.feedback_floor)
         return dr.select(valid, K.lerp(s_raw, hs, k), s_raw), valid
 
-    def _step(self, b: dict, w: int, h: int, far: float):
+    def _step(self, b: dict, frame: Frame):
         p = self.params
-        grid = self._grid_for(w, h)
+        grid = self._grid_for(*frame.size)
+        far = frame.far
         c = b["color"]
         zn = b["depth"] / far            # normalised linear depth
         zp = b["prev_depth"] / far

@@ -8,6 +8,7 @@
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -15,7 +16,7 @@ import numpy as np
 import backend  # noqa: F401
 from backend import dr, mi
 
-from .base import Technique, from_drjit_color
+from .base import Frame, Inputs, Technique, from_drjit_color
 
 
 @dataclass(frozen=True)
@@ -25,14 +26,13 @@ class NoAAParams:
 
 class NoAA(Technique):
     name = "noaa"
-    needs = frozenset({"color"})
     Params = NoAAParams
-    sampling = "centre"
+    contract = Inputs(buffers={"color"}, sampling="centre")
 
     def _clear_history(self) -> None:
         pass
 
-    def _step(self, b: dict, w: int, h: int, far: float):
+    def _step(self, b: dict, frame: Frame):
         return b["color"]
 
 
@@ -47,47 +47,39 @@ class AccumulationParams:
 
 
 class Accumulation(Technique):
-    """Mean of jittered sub-frames. `process_samples(frames)` gives the mean of exactly those frames;
-    `process(frame)` adds one frame to a running mean and returns it (until `reset()`, a
-    `reset=True` call or a resolution change, which start a new mean). `count` is the number of
-    frames in the current mean. The driver renders sub-frame j with halton_offset(j, samples)."""
+    """Mean of jittered sub-frames. `process(Frame(samples=frames, ...))` gives the mean of exactly
+    those frames; a frame of one `buffers` adds it to a running mean and returns that (until
+    `reset()`, a `reset=True` frame or a resolution change, which start a new mean). `count` is the
+    number of frames in the current mean. The driver renders sub-frame j with halton_offset(j, samples)."""
 
     name = "accumulation"
-    needs = frozenset({"color"})
     Params = AccumulationParams
-    sampling = "supersample"
+    contract = Inputs(buffers={"color"}, sampling="supersample")
+
+    @classmethod
+    def inputs_for(cls, params=None) -> Inputs:
+        n = (params or cls.Params()).samples
+        return dataclasses.replace(cls.contract, subframes=n)
 
     def _clear_history(self) -> None:
         self._sum = None   # mi.Color3d
         self.count = 0
 
-    def _step(self, b: dict, w: int, h: int, far: float):
+    def _step(self, b: dict, frame: Frame):
         c = mi.Color3d(b["color"])
         self._sum = c if self._sum is None else self._sum + c
         dr.eval(self._sum)
         self.count += 1
         return mi.Color3f(self._sum / float(self.count))
 
-    def process_samples(self, frames, *, far: float = 1.0, jitters=None) -> np.ndarray:
-        """The (H, W, 3) float32 mean of the frames' colours (all of one resolution). The running
-        mean is restarted, and afterwards holds these frames. `jitters` (optional, one per frame)
-        is informational; `far` only matters for repairing a non-finite depth, which is not read.
+    def process_samples(self, frames, *, far: float = 1.0) -> np.ndarray:
+        """The (H, W, 3) float32 mean of the frames' colours: `process(Frame(samples=frames, far=far))`.
+        `far` only matters for repairing a non-finite depth, which is not read;
         `last_nonfinite_count` is the total of repaired pixels over all the frames."""
-        frames = list(frames)
+        frames = tuple(frames)
         if not frames:
             raise ValueError("process_samples needs at least one frame")
-        shapes = {np.shape(f["color"])[:2] for f in frames}
-        if len(shapes) != 1:
-            raise ValueError(f"sub-frames of one output must share a resolution, got {sorted(shapes)}")
-        if jitters is not None and len(jitters) != len(frames):
-            raise ValueError("need one jitter per frame")
-        self.reset()
-        total, out = 0, None
-        for i, fr in enumerate(frames):
-            out = self.process(fr, jitter=jitters[i] if jitters is not None else (0.0, 0.0), far=far)
-            total += self.last_nonfinite_count
-        self.last_nonfinite_count = total
-        return out
+        return self.process(Frame(samples=frames, far=far))
 
     @property
     def mean(self) -> np.ndarray | None:

@@ -30,15 +30,15 @@ a usable history -- first frame, after a reset or a resolution change, reproject
 rejected by the reject_depth / reject_id switches -- are invalid too (the paper's reason (1),
 "visibility changed", at its most certain).
 
-Per frame: the baseline TAA runs everywhere unchanged (taa_impl/baseline.py with all TAAParams switches,
-code mirrored from BaselineTAA._step); then out = supersampled where invalid, the TAA blend elsewhere;
+Per frame: the baseline TAA runs everywhere unchanged (BaselineTAA._step, with all TAAParams switches);
+its hook `_composite` makes out = supersampled where invalid, the TAA blend elsewhere;
 that composite is the new history (so a re-rendered pixel restarts its history from an N-sample
 estimate) and is sharpened for display exactly as the baseline's blend is.
 
-Driver protocol (class attribute `supersampling = True`; study.engine.drive drives it):
-  mask = tech.invalid_mask(frame, far=far)         # (H, W) bool, no state change
+Driver protocol (its contract's `extra_samples = params.samples`; study.engine.drive drives it):
+  mask = tech.invalid_mask(frame)                  # (H, W) bool, no state change
   supersampled = <mean of params.samples jittered samples, rendered where mask is set, 0 elsewhere>
-  out = tech.process(frame, jitter=..., far=..., reset=..., supersampled=supersampled, mask=mask)
+  out = tech.process(dataclasses.replace(frame, supersampled=supersampled, mask=mask))
   tech.last_stats -> {"invalid_fraction", "extra_samples", "pixels"}
 `mask` may be a superset of the technique's own invalid pixels (what the driver rendered); a mask
 that misses one of them, or supersampled=None, is an error. Without `mask`, process uses its own.
@@ -47,6 +47,7 @@ frame's colour the result is the baseline TAA's, bit for bit (tested).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -56,9 +57,9 @@ import backend  # noqa: F401
 from backend import array, dr, mi
 
 from . import kernels as K
-from . import sanitize
-from .base import TAAParams, from_drjit_color, sharpen_weight, to_drjit
-from .baseline import BaselineTAA, fetch_history, resolve
+from .base import TAAParams, from_drjit_color, to_drjit
+from .contract import Frame, Inputs, as_frame, checked
+from .baseline import BaselineTAA, fetch_history
 
 DIFFERENCES = ("tonemapped_max", "linear_max", "luma_relative")
 
@@ -103,13 +104,11 @@ def colour_difference(kind: str, c, h, luma_floor: float = 0.2):
 class SparseTAA(BaselineTAA):
     name = "taa_sparse"
     Params = SparseParams
-    sampling = "sequence"
-    supersampling = True
 
-    def __init__(self, params=None, *, feedback: str | None = None, **overrides):
-        super().__init__(params, feedback=feedback, **overrides)
-        self.last_stats: dict = {}
-        self._pending = None
+    @classmethod
+    def inputs_for(cls, params=None) -> Inputs:
+        p = params if params is not None else cls.Params()
+        return dataclasses.replace(super().inputs_for(p), extra_samples=p.samples)
 
     # -- the reuse test --------------------------------------------------------------------------
     def _invalid(self, grid: K.Grid, b: dict, velocity, reject):
@@ -126,26 +125,15 @@ class SparseTAA(BaselineTAA):
         dr.eval(invalid)
         return invalid
 
-    def _velocity(self, grid: K.Grid, b: dict):
-        best_i = K.closest_index(grid, b["depth"])
-        return best_i, dr.gather(mi.Vector2f, b["motion"], best_i)
-
-    def invalid_mask(self, frame: dict, *, far: float, reset: bool = False) -> np.ndarray:
+    def invalid_mask(self, frame: Frame | dict | None = None, /, **fields) -> np.ndarray:
         """(H, W) bool: pixels of this frame that will need the supersampled colour, computed from
         the frame and the current history without changing any state. All True on the first
-        frame, after a reset, with reset=True and when the resolution changed."""
-        far = float(far)
-        if not (math.isfinite(far) and far > 0):
-            raise ValueError(f"far must be finite and > 0, got {far}")
-        missing = self.needs - frame.keys()
-        if missing:
-            raise KeyError(f"{self.name} needs buffers {sorted(missing)}")
-        h, w = np.shape(frame["color"])[:2]
-        if reset or self._history is None or self._shape != (h, w):
+        frame, after a reset, for a frame with reset=True and when the resolution changed."""
+        frame, _ = checked(as_frame(frame, fields), self.inputs, self.name, final=False)
+        w, h = frame.size
+        if frame.reset or self._history is None or self._shape != (h, w):
             return np.ones((h, w), bool)
-        bufs = sanitize.check_and_repair(frame, self.needs, (h, w), far)
-        bufs.pop("_nonfinite")
-        b = to_drjit(bufs)
+        b = to_drjit(frame.buffers)
         grid = self._grid_for(w, h)
         best_i, velocity = self._velocity(grid, b)
         saved = (self._prev_depth, self._prev_ids)
@@ -156,72 +144,29 @@ class SparseTAA(BaselineTAA):
         inv = self._invalid(grid, b, velocity, reject)
         return np.asarray(inv, dtype=bool).reshape(h, w).copy()
 
-    # -- per frame -------------------------------------------------------------------------------
-    def process(self, frame: dict, *, jitter, far: float, reset: bool = False, display=None,
-                supersampled=None, mask=None) -> np.ndarray:
-        """As Technique.process, plus the supersampled colour (required) and the driver's mask."""
-        if supersampled is None:
-            raise ValueError(f"{self.name} needs supersampled= (the (H, W, 3) mean of "
-                             f"{self.params.samples} jittered samples at the pixels of "
-                             f"invalid_mask()); the driver did not provide it")
-        hw = np.shape(frame["color"])[:2]
-        ss = np.asarray(supersampled, dtype=np.float32)
-        if ss.shape != (*hw, 3):
-            raise ValueError(f"supersampled has shape {ss.shape}, expected {(*hw, 3)}")
-        if mask is not None:
-            mask = np.asarray(mask, dtype=bool)
-            if mask.shape != hw:
-                raise ValueError(f"mask has shape {mask.shape}, expected {hw}")
-        self._pending = (ss, mask)
-        try:
-            return super().process(frame, jitter=jitter, far=far, reset=reset, display=display)
-        finally:
-            self._pending = None
-
-    def _step(self, b: dict, w: int, h: int, far: float):
-        if self._pending is None:
-            raise ValueError(f"{self.name}: call process(..., supersampled=...)")
-        ss_np, mask_np = self._pending
+    # -- per frame: the baseline's step, with the supersampled colour composited in ------------------
+    def _composite(self, grid: K.Grid, b: dict, frame: Frame, blend, velocity, reject):
         p = self.params
-        grid = self._grid_for(w, h)
-        # -- BaselineTAA._step, unchanged -------------------------------------------------------
-        c = b["color"]
-        best_i, velocity = self._velocity(grid, b)
-        reject = self._rejection(grid, b, best_i, velocity)
+        w, h = frame.size
         invalid = self._invalid(grid, b, velocity, reject)   # before the history changes
-        bmin, bmax, bavg = self._box(grid, c)
-        blend, valid = resolve(p, grid, c, self._history, velocity, bmin, bmax, reject)
-        # -- the sparse supersampling composite -------------------------------------------------
         need = np.asarray(invalid, dtype=bool).reshape(h, w)
-        if mask_np is None:
-            mask_np = need
-        elif np.any(need & ~mask_np):
+        mask_np = need if frame.mask is None else frame.mask
+        if np.any(need & ~mask_np):
             raise ValueError(f"the mask given to {self.name}.process misses "
                              f"{int(np.sum(need & ~mask_np))} pixel(s) the technique finds invalid "
                              f"(use invalid_mask() on the same frame, before process)")
-        ss_np = np.where(mask_np[..., None], ss_np, np.float32(0))
+        ss_np = np.where(mask_np[..., None], frame.supersampled, np.float32(0))
         bad = mask_np & ~np.isfinite(ss_np).all(axis=-1)
         if bad.any():   # never let a non-finite value into the history: use the current colour
-            c_np = from_drjit_color(c, h, w)
-            ss_np = np.where(bad[..., None], c_np, ss_np)
+            ss_np = np.where(bad[..., None], from_drjit_color(b["color"], h, w), ss_np)
         self.last_nonfinite["supersampled"] = int(bad.sum())
         self.last_nonfinite_count += int(bad.sum())
         m = array(mi.Bool, mask_np)
-        ss = dr.unravel(mi.Color3f, array(mi.Float, ss_np))
-        out = dr.select(m, ss, blend)
-        dr.eval(out)
-        self._history = out
+        out = dr.select(m, dr.unravel(mi.Color3f, array(mi.Float, ss_np)), blend)
         n_mask = int(mask_np.sum())
         self.last_stats = {"invalid_fraction": n_mask / float(w * h),
                            "extra_samples": n_mask * p.samples, "pixels": w * h}
-        self._terms = {"velocity": velocity, "box_min": bmin, "box_max": bmax, "box_avg": bavg,
-                       "history_valid": mi.Float(dr.select(valid, 1.0, 0.0)) if valid is not None
-                       else dr.zeros(mi.Float, grid.n),
-                       "invalid": mi.Float(dr.select(m, 1.0, 0.0)),
-                       "blend": blend, "composite": out}
-        if reject is not None:
-            self._terms["history_rejected"] = mi.Float(dr.select(reject, 1.0, 0.0))
-        return K.sharpen(grid, out, sharpen_weight(p.sharpen))
+        return out, {"invalid": mi.Float(dr.select(m, 1.0, 0.0)), "composite": out}
 
 
 __all__ = ["SparseTAA", "SparseParams", "DIFFERENCES", "colour_difference"]

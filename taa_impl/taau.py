@@ -24,7 +24,7 @@ import backend  # noqa: F401
 from backend import dr, mi
 
 from . import kernels as K
-from .base import TAAParams, sharpen_weight
+from .base import Inputs, TAAParams, sharpen_weight
 from .upscale import Upscaler, check_scale
 
 
@@ -55,9 +55,8 @@ class TAAUParams(TAAParams):
 
 class TAAU(Upscaler):
     name = "taau"
-    needs = frozenset({"color", "depth", "motion"})
     Params = TAAUParams
-    sampling = "sequence"
+    contract = Inputs(buffers={"color", "depth", "motion"}, sampling="sequence", upsamples=True)
 
     def _clear_state(self) -> None:
         self._history = None
@@ -91,7 +90,7 @@ class TAAU(Upscaler):
         cur = dr.select(wsum > 1e-30, acc / dr.maximum(wsum, 1e-30), dr.gather(mi.Color3f, c, near))
         return dr.clip(cur, bmin, bmax), bmin, bmax, wmax
 
-    def _upscale(self, b, fr, far, jitter):
+    def _upscale(self, b, fr, frame, jitter):
         p = self.params
         best = K.closest_index(fr.render, b["depth"])
         vel_r = dr.gather(mi.Vector2f, b["motion"], best)

@@ -3,7 +3,7 @@ output at the output's size, judged against the output-size reference like every
 
 The driver renders an upscaler's frames at `render_size(W, H, scale)` over the output's frustum
 (raster.Rasterizer(aspect=)), jittered with the technique's own phase count (`Inputs.jitter_period`),
-and calls `process(frame, jitter=, far=, output_size=(W, H), ...)`. Buffers (colour, depth, motion)
+and hands them over with the output's size (`Frame.output_size = (W, H)`; its contract `upsamples`). Buffers (colour, depth, motion)
 come at the render resolution, motion in render pixels, as engines hand them to an upscaler.
 
 Coordinates: output pixel (X, Y) has its centre at (X + 0.5, Y + 0.5) output pixels, i.e. at
@@ -15,6 +15,7 @@ bilinear or Lanczos-2). taa_impl.taau is a plain TAAU, taa_impl.fsr2 an FSR 2-cl
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import ClassVar
@@ -25,21 +26,8 @@ import backend  # noqa: F401
 from backend import dr, mi, opaque
 
 from . import kernels as K
-from . import sanitize
-from .base import Inputs, Technique, from_drjit_color, terms_to_numpy, to_drjit
-
-
-def render_size(width: int, height: int, scale: float) -> tuple[int, int]:
-    """The render resolution of an output at `scale` (FSR 2's rule: output / ratio, truncated)."""
-    scale = check_scale(scale)
-    return max(1, int(width * scale + 1e-6)), max(1, int(height * scale + 1e-6))
-
-
-def check_scale(scale) -> float:
-    s = float(scale)
-    if not (math.isfinite(s) and 0.1 <= s <= 1.0):
-        raise ValueError(f"render_scale must be in [0.1, 1], got {scale!r}")
-    return s
+from .base import Frame, Inputs, Technique, terms_to_numpy
+from .contract import check_scale, render_size  # noqa: F401  (render_size: this module's, as before)
 
 
 def fsr2_phase_count(render_width: float, output_width: float) -> int:
@@ -104,53 +92,29 @@ class Frames:
 
 
 class Upscaler(Technique):
-    """Base class: the technique's Params has `render_scale`; `process` takes `output_size`."""
+    """Base class: the technique's Params has `render_scale`; its frames come with `output_size`.
+    A subclass implements `_upscale(b, grids, frame, jitter)` (grids: this step's `Frames`; jitter:
+    opaque Dr.Jit scalars)."""
 
-    upsamples: ClassVar[bool] = True
+    contract = Inputs(buffers={"color"}, upsamples=True)
 
-    @property
-    def inputs(self) -> Inputs:
-        base = super().inputs
-        return Inputs(**{**base.__dict__, "render_scale": float(self.params.render_scale),
-                         "upsamples": True, "jitter_period": self.jitter_period()})
+    @classmethod
+    def inputs_for(cls, params=None) -> Inputs:
+        p = params if params is not None else cls.Params()
+        return dataclasses.replace(cls.contract, render_scale=float(p.render_scale), upsamples=True,
+                                   jitter_period=cls.jitter_period(p))
 
-    def jitter_period(self) -> int:
+    @classmethod
+    def jitter_period(cls, params) -> int:
+        """The jitter's phase count ('sequence'): the TAAs' 16."""
         return 16
 
-    def process(self, frame: dict, *, jitter, far: float, output_size=None, reset: bool = False,
-                display=None) -> np.ndarray:
-        """A render-resolution frame in, the (H, W, 3) float32 output-resolution image out."""
-        if output_size is None:
-            raise ValueError(f"{self.name} upsamples: pass output_size=(width, height)")
-        w, h = (int(v) for v in output_size)
-        far = float(far)
-        if not (math.isfinite(far) and far > 0):
-            raise ValueError(f"far must be finite and > 0, got {far}")
-        jx, jy = (float(v) for v in jitter)
-        if not (math.isfinite(jx) and math.isfinite(jy)):
-            raise ValueError(f"jitter must be finite, got {jitter!r}")
-        self.last_jitter = (jx, jy)
-        missing = self.needs - frame.keys()
-        if missing:
-            raise KeyError(f"{self.name} needs buffers {sorted(missing)}")
-        rw, rh = render_size(w, h, self.params.render_scale)
-        got = tuple(np.shape(frame["color"])[:2])
-        if got != (rh, rw):
-            raise ValueError(f"{self.name} at render_scale {self.params.render_scale} of {w}x{h} renders "
-                             f"{rw}x{rh}, got a {got[1]}x{got[0]} frame")
-        bufs = sanitize.check_and_repair(frame, self.needs, (rh, rw), far)
-        self.last_nonfinite = bufs.pop("_nonfinite")
-        self.last_nonfinite_count = sum(self.last_nonfinite.values())
-        if self._shape != (h, w):          # an output size change invalidates the history
-            self.reset()
-            self._shape = (h, w)
-        if reset:
-            self.reset()
+    def _step(self, b: dict, frame: Frame):
         if self._frames is None:
-            self._frames = Frames.of(rw, rh, w, h)
+            self._frames = Frames.of(*frame.size, *frame.output_size)
         # opaque: a literal jitter would make each phase's kernels new, to be compiled again
-        out = self._upscale(to_drjit(bufs), self._frames, far, (opaque(mi.Float, jx), opaque(mi.Float, jy)))
-        return from_drjit_color(out, h, w)
+        jx, jy = frame.jitter
+        return self._upscale(b, self._frames, frame, (opaque(mi.Float, jx), opaque(mi.Float, jy)))
 
     def _clear_history(self) -> None:
         self._frames = None
@@ -160,7 +124,7 @@ class Upscaler(Technique):
     def _clear_state(self) -> None:
         pass
 
-    def _upscale(self, b: dict, fr: Frames, far: float, jitter):
+    def _upscale(self, b: dict, fr: Frames, frame: Frame, jitter):
         raise NotImplementedError
 
     def debug_terms(self) -> dict[str, np.ndarray]:
@@ -187,11 +151,10 @@ class SpatialUpscale(Upscaler):
     alone. At render_scale 1 both filters give No AA's image exactly (each output pixel centre is a
     texel centre)."""
     name = "upscale_spatial"
-    needs = frozenset({"color"})
     Params = SpatialParams
-    sampling = "centre"
+    contract = Inputs(buffers={"color"}, sampling="centre", upsamples=True)
 
-    def _upscale(self, b, fr, far, jitter):
+    def _upscale(self, b, fr, frame, jitter):
         c = b["color"]
         if self.params.filter == "bilinear":
             return K.bilinear(fr.render, c, fr.ux, fr.uy)

@@ -58,11 +58,11 @@ def test_registry_and_params():
         t = taa_impl.make(name)
         assert isinstance(t, FerrandoTAA) and t.name == name
         assert (t.params.history_weight, t.params.clamp) == (k, clamp)
-        assert t.sampling == "sequence" and t.output_space == "linear" and t.needs_cameras
+        assert t.sampling == "sequence" and t.output_space == "linear" and t.inputs.cameras
         assert t.needs == {"color", "depth"}
         assert taa_impl.TECHNIQUES[name].needs == {"color", "depth"}
     b = taa_impl.make("taa_ferrando_text", motion_source="buffer")
-    assert b.needs == {"color", "motion"} and not b.needs_cameras
+    assert b.needs == {"color", "motion"} and not b.inputs.cameras
     for bad in ({"history_weight": 1.5}, {"clamp": "box"}, {"motion_source": "x"},
                 {"offscreen": "wrap"}, {"sharpen": "strong"}):
         with pytest.raises(ValueError):

@@ -30,7 +30,7 @@ def drive(tech, frame, supersampled_of=None, reset=False, jitter=(0.0, 0.0)):
 def test_registry_and_params():
     t = taa_impl.make("taa_sparse")
     assert isinstance(t, SparseTAA) and t.name == "taa_sparse"
-    assert t.sampling == "sequence" and t.output_space == "linear" and t.supersampling is True
+    assert t.sampling == "sequence" and t.output_space == "linear" and t.inputs.masks is True
     assert (t.params.mu, t.params.samples, t.params.difference) == (0.2, 8, "tonemapped_max")
     assert t.needs == {"color", "depth", "motion"}
     assert hash(t.params) == hash(taa_impl.make("taa_sparse").params)

@@ -106,16 +106,17 @@ def _extra_inputs(tech, frame, width, height) -> dict:
 
 def _kernel_only(tech, frame, width, height):
     """The Dr.Jit part alone on inputs already on the device, for plain TAAs; None otherwise."""
-    from taa_impl.base import to_drjit
+    from taa_impl.base import Frame, to_drjit
     inp = tech.inputs
     plain = not (inp.cameras or inp.extra_samples or inp.display)
     if not plain or not hasattr(tech, "_step") or inp.sampling != "sequence":
         return None
     bufs = to_drjit({k: frame[k] for k in tech.needs})
     dr.eval(bufs)
+    fr = Frame(buffers=frame, far=100.0, output_size=(width, height))
 
     def kernel():
-        r = tech._step(bufs, width, height, 100.0)
+        r = tech._step(bufs, fr)
         dr.eval(r)
         dr.sync_thread()
     return kernel

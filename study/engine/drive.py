@@ -5,6 +5,7 @@ its scene time lasts; a supersampling technique's sub-frames are not shared with
 """
 from __future__ import annotations
 
+import dataclasses
 import inspect
 import traceback
 
@@ -18,7 +19,7 @@ from raster.visibility import RasterError
 from scenes import ResolvedScene
 from scenes.jitter import halton_offsets
 from taa_impl import sanitize
-from taa_impl.upscale import render_size
+from taa_impl.contract import Frame, render_size
 
 from study.config.protocols import Step, frame_key, judged_steps, step_jitters
 
@@ -114,35 +115,27 @@ class FrameSource:
 
 def drive(tech, step: Step, src: FrameSource, scene: ResolvedScene, width: int, height: int,
           display: DisplayTransform | None):
-    """One step of one technique: the inputs it declares, then `process`. Returns (image, stats)."""
+    """One step of one technique: the Frame its contract asks for, then `process`. Returns (image, stats)."""
     inp = tech.inputs
-    far = scene.desc.camera.far
-    kwargs = {"far": far, "reset": step.reset}
-    if inp.display:
-        kwargs["display"] = display
-    if inp.cameras:
-        kwargs["cameras"] = (scene.camera(step.t, width, height), scene.camera(step.prev_t, width, height))
-    if inp.upsamples:
-        kwargs["output_size"] = (width, height)
-    if inp.sampling == "sequence":
-        (jit,) = step_jitters(step, "sequence", period=inp.jitter_period)
-        frame = src.frame(step.t, jit, step.prev_t)
-        if inp.extra_samples:
-            # Sparse supersampling: extra samples only where the history cannot serve the pixel.
-            mask = np.ones(frame["color"].shape[:2], bool) if step.reset else tech.invalid_mask(frame, far=far)
-            ss, ss_stats = src.raster.supersample(step.t, mask, halton_offsets(inp.extra_samples))
-            img = tech.process(frame, jitter=jit, supersampled=ss, mask=mask, **kwargs)
-            return img, {**getattr(tech, "last_stats", {}), **ss_stats}
-        return tech.process(frame, jitter=jit, **kwargs), {}
-    if inp.sampling == "centre":
-        return tech.process(src.frame(step.t, (0.0, 0.0), step.prev_t), jitter=(0.0, 0.0), **kwargs), {}
-    if inp.sampling == "supersample":
-        jitters = step_jitters(step, "supersample", inp.subframes)
-        img = tech.process_samples([src.frame(step.t, j, step.prev_t) for j in jitters])
+    cams = (scene.camera(step.t, width, height), scene.camera(step.prev_t, width, height)) if inp.cameras else None
+    jitters = step_jitters(step, inp.sampling, inp.subframes, period=inp.jitter_period)
+    frames = [src.frame(step.t, j, step.prev_t) for j in jitters]
+    one = inp.sampling != "supersample"      # else: all sub-frames of one output at once
+    frame = Frame(buffers=frames[0] if one else {}, samples=() if one else tuple(frames),
+                  jitter=jitters[0] if one else (0.0, 0.0), far=scene.desc.camera.far, reset=step.reset,
+                  display=display if inp.display else None, cameras=cams,
+                  output_size=(width, height) if inp.upsamples else None)
+    ss_stats = {}
+    if inp.masks:
+        # Sparse supersampling: extra samples only where the history cannot serve the pixel.
+        mask = np.ones(frame.size[::-1], bool) if step.reset else tech.invalid_mask(frame)
+        ss, ss_stats = src.raster.supersample(step.t, mask, halton_offsets(inp.extra_samples))
+        frame = dataclasses.replace(frame, supersampled=ss, mask=mask)
+    img = tech.process(frame)
+    if not one:
         for j in jitters:   # sub-frames are not shared with later steps
             src.forget(step.t, j, step.prev_t)
-        return img, {}
-    raise ValueError(f"technique {tech.name!r} has unknown sampling {inp.sampling!r}")
+    return img, {**tech.last_stats, **ss_stats}
 
 
 def run_schedule(scene: ResolvedScene, width: int, height: int, schedule: list[Step],
