@@ -49,7 +49,7 @@ def test_a_study_short_of_disk_prunes_its_largest_runs_and_makes_them_again_with
     roomy = s.run(scenes, configs, agreement=False)
     plan = s.plan(scenes, configs, agreement=False, final=False, prune=frozenset())[0]  # what a cold cache writes
     s2, _, _ = _study(tmp_path / "probe", scenes)
-    need = D.needs(s2.plan(scenes, configs, agreement=False, final=False, prune=frozenset())[0], s2.planner)
+    need = D.needs(s2.plan(scenes, configs, agreement=False, final=False, prune=frozenset())[0])
     assert not plan.tasks and set(need["tests"]) >= {("tiny_moving", "static"), ("tiny_moving", "ghosting")}
     big = max(need["tests"], key=lambda k: need["tests"][k][0] - need["tests"][k][1])
     tests = need["tests"]

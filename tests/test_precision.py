@@ -202,12 +202,12 @@ def test_drift_scaled_to_the_finer_bound_and_the_level_the_figures_ask_for():
     assert levels_asked(0.1, 0.01) == 4 and levels_asked(1e-5, 1e-4) == -2 and levels_asked(0.3, 0.0) == 0
     A = ("s", "static")
     figs = {("static", "A", 8, "psnr"): (30.0, 0.1), ("static", "A", 8, "ssim"): (0.9, 1e-5)}
-    assert decide({A: figs}, {}, {}, Precision(), {}, {})[0] == {A: {None: 4}}
-    assert decide({A: figs}, {}, {A: 2}, Precision(finest_bound_lsb=0.25), {}, {})[0] == {A: {None: 5}}   # at most the finest
+    assert decide({A: figs}, {}, {}, Precision(), {}, {}).finer == {A: {None: 4}}
+    assert decide({A: figs}, {}, {A: 2}, Precision(finest_bound_lsb=0.25), {}, {}).finer == {A: {None: 5}}   # at most the finest
     ssim = {("static", "A", 8, "ssim"): (0.9, 2e-4)}         # over, asks 2: at least one level finer than 1
-    assert decide({A: ssim}, {}, {A: 1}, Precision(), {}, {})[0] == {A: {None: 3}}
+    assert decide({A: ssim}, {}, {A: 1}, Precision(), {}, {}).finer == {A: {None: 3}}
     zero = {("static", "A", 8, "mse"): (0.0, 0.3)}            # over a tolerance of 0, no scale: one level finer
-    assert decide({A: zero}, {}, {}, Precision(), {}, {})[0] == {A: {None: 1}}
+    assert decide({A: zero}, {}, {}, Precision(), {}, {}).finer == {A: {None: 1}}
 
 
 def test_a_ghosting_test_refines_the_instants_its_figures_are_over_at_and_the_temporal_rms_all():
@@ -217,25 +217,26 @@ def test_a_ghosting_test_refines_the_instants_its_figures_are_over_at_and_the_te
     every instant from the coarsest. In the round after, a figure's drift is its change over its own
     instants' bounds (8 -> 1 LSB: x 1/7), and frames whose references did not change keep theirs."""
     from study.engine.precision import decide, level_at
+    from study.engine.rounds import InstantKey
     G = ("s", "ghosting")
     inst = {G: {("X", 0): 10, ("X", 1): 11, ("X", 2): 12}}
     f0, f2, tr = ("ghosting", "X", 0, "flip_hdr"), ("ghosting", "X", 2, "flip_hdr"), ("ghosting", "X", None, "temporal")
     p = Precision()
     probe = {f0: (0.1, 0.5e-4), f2: (0.1, 4e-4), tr: (10.0, 0.001)}
     levels, before, over, drifts = {}, {}, {}, {}
-    finer, judged = decide({G: probe}, before, levels, p, over, drifts, inst)
+    finer, judged, over, drifts, before = decide({G: probe}, before, levels, p, over, drifts, inst)
     assert judged == {G} and finer == {G: {12: 3}} and [x[2] for x in over[G]] == [2]
-    levels.update({(*G, t): n for t, n in finer[G].items()})
+    levels.update({InstantKey(*G, t): n for t, n in finer[G].items()})
     assert [level_at(levels, G, t) for t in (10, 11, 12)] == [0, 0, 3]
     # frame 2 moved 0.0003 at 1 LSB (beyond the 4.5e-4 of both halves? no: within): no drift;
     # the temporal RMS moved 0.009 - 0.002 of noise = 0.007, x 1 / (8 - 1) = 0.001: within 0.023
-    finer, judged = decide({G: {f0: (0.1, 0.5e-4), f2: (0.1003, 0.4e-4), tr: (10.009, 0.001)}}, before, levels, p,
-                           over, drifts, inst)
+    finer, judged, over, drifts, before = decide({G: {f0: (0.1, 0.5e-4), f2: (0.1003, 0.4e-4), tr: (10.009, 0.001)}},
+                                                 before, levels, p, over, drifts, inst)
     assert judged == {G} and finer == {} and over[G] == []
     assert drifts[G][f2] == 0.0 and drifts[G][tr] == pytest.approx(0.007 / 7) and f0 not in drifts[G]
     # nothing changed: not judged again
-    assert decide({G: {f0: (0.1, 0.5e-4)}}, before, levels, p, over, drifts, inst) == ({}, set())
-    finer, _ = decide({G: {**probe, tr: (10.0, 0.05)}}, {}, {}, p, {}, {}, inst)
+    assert decide({G: {f0: (0.1, 0.5e-4)}}, before, levels, p, over, drifts, inst)[:2] == ({}, set())
+    finer = decide({G: {**probe, tr: (10.0, 0.05)}}, {}, {}, p, {}, {}, inst).finer
     assert finer == {G: {10: 2, 11: 2, 12: 3}}
     from study.engine.precision import bounds_text     # how the log and the table print them
     assert bounds_text({0.5: 2, 1.0: 22}) == "1 (22 instants), 0.5 (2)"
@@ -293,17 +294,20 @@ def test_decide_refines_each_test_on_its_own_and_leaves_a_settled_one_alone():
     A, B = ("s", "static"), ("s", "ghosting")
     levels, before, over, drifts = {}, {}, {}, {}
     f = ("static", "X", 8, "psnr")
-    finer, judged = decide({A: {f: (40.0, 0.03)}, B: {f: (30.0, 0.012)}}, before, levels, p, over, drifts)
+    finer, judged, over, drifts, before = decide({A: {f: (40.0, 0.03)}, B: {f: (30.0, 0.012)}}, before, levels, p,
+                                                 over, drifts)
     # u falls with the bound: A asks ceil(log2(0.03 x 1.5 / 0.01)) = 3 levels (1 LSB), B 1 (4 LSB)
     assert judged == {A, B} and finer == {A: {None: 3}, B: {None: 1}} and over[A] and over[B]
     levels.update({k: n[None] for k, n in finer.items()})
-    finer, judged = decide({A: {f: (40.004, 0.002)}, B: {f: (30.1, 0.004)}}, before, levels, p, over, drifts)
+    finer, judged, over, drifts, before = decide({A: {f: (40.004, 0.002)}, B: {f: (30.1, 0.004)}}, before, levels, p,
+                                                 over, drifts)
     # A: the change 0.004 is within both noises (0.002 + 0.03): no drift, and u 0.002 <= 0.01
     assert judged == {A, B} and over[A] == [] and drifts[A][f] == 0.0 and A not in finer
     # B: (0.1 - 0.004 - 0.012) x 4 / (8 - 4) = 0.084 left at 4 LSB: over, on to ceil(log2(...))
     assert drifts[B][f] == pytest.approx(0.084) and over[B] and finer == {B: {None: 1 + math.ceil(math.log2(0.088 * 1.5 / 0.01))}}
     levels.update({k: n[None] for k, n in finer.items()})
-    finer, judged = decide({A: {f: (40.004, 0.002)}, B: {f: (30.11, 0.001)}}, before, levels, p, over, drifts)
+    finer, judged, over, drifts, before = decide({A: {f: (40.004, 0.002)}, B: {f: (30.11, 0.001)}}, before, levels, p,
+                                                 over, drifts)
     assert judged == {B} and over[A] == [] and drifts[A][f] == 0.0
 
 
@@ -311,11 +315,10 @@ def test_a_test_within_tolerance_at_the_probe_settles_there_unless_confirm_asks_
     from study.engine.precision import decide
     A, f = ("s", "static"), ("static", "X", 8, "psnr")
     for confirm, want in ((False, {}), (True, {A: {None: 1}})):
-        over: dict = {}
-        finer, judged = decide({A: {f: (40.0, 0.009)}}, {}, {}, Precision(confirm=confirm), over, {})
+        finer, judged, over, _, _ = decide({A: {f: (40.0, 0.009)}}, {}, {}, Precision(confirm=confirm), {}, {})
         assert judged == {A} and over[A] == [] and finer == want, confirm
     # over its tolerance at the probe: refined either way
-    finer, _ = decide({A: {f: (40.0, 0.011)}}, {}, {}, Precision(), {}, {})
+    finer = decide({A: {f: (40.0, 0.011)}}, {}, {}, Precision(), {}, {}).finer
     assert finer == {A: {None: 1}}
 
 
@@ -450,8 +453,9 @@ def test_the_ghosting_protocols_share_an_instant_s_reference_at_the_finest_level
     bounds every round) and another scene's stay their own."""
     from study.engine.runner import Study
     s = Study("quick", cache_root=tmp_path, progress=False)
-    s.levels.update({("a", "ghosting", 3): 2, ("a", "ghosting_warm", 3): 4, ("a", "ghosting_warm", 5): 1,
-                     ("a", "static", 0): 6, ("b", "ghosting", 3): 3, ("a", "ghosting"): 1})
+    from study.engine.rounds import InstantKey as I, TestKey
+    s.levels.update({I("a", "ghosting", 3): 2, I("a", "ghosting_warm", 3): 4, I("a", "ghosting_warm", 5): 1,
+                     I("a", "static", 0): 6, I("b", "ghosting", 3): 3, TestKey("a", "ghosting"): 1})
     assert [s.level_of("a", p, 3) for p in ("ghosting", "ghosting_warm")] == [4, 4]
     assert s.level_of("a", "ghosting", 5) == 1 and s.level_of("a", "ghosting", 7) == 1   # the test's own
     assert s.level_of("a", "ghosting_warm", 7) == 0 and s.level_of("a", "ghosting", 0) == 1

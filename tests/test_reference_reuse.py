@@ -218,7 +218,8 @@ def test_the_study_reads_an_instants_reference_with_the_settings_its_plan_render
     from study.engine.tasks import load_scene
     s = Study("quick", cache_root=tmp_path, progress=False)
     s.ref_settings["reuse"] = True
-    s.levels[("sphere_ghosting", "ghosting", 3)] = 2
+    from study.engine.rounds import InstantKey
+    s.levels[InstantKey("sphere_ghosting", "ghosting", 3)] = 2
     ghosts = s.plan(["sphere_ghosting"], [TechniqueConfig.parse("FXAA=fxaa")], agreement=False)[3]
     asked = []
     monkeypatch.setattr(s.cache, "get", lambda scene, t, w, h, **kw: (asked.append((t, kw)) or (None, True)))

@@ -114,7 +114,7 @@ def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
                             sharpen=sharpen_sweep_configs(prof.sharpen_sweep))[0]
         work = E.work(plan, None if from_scratch else study.cache)
         from study.engine import disk as D
-        need = D.needs(plan, planner.planner)
+        need = D.needs(plan)
     gb = 2 ** 30
     disk = {"references_gb": need["references"] / gb, "maps_gb": need["maps"] / gb,
             "runs_whole_gb": sum(w for w, _ in need["tests"].values()) / gb,

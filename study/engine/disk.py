@@ -29,13 +29,13 @@ class DiskError(TaskError):
     """The plan's files cannot fit in the cache's free space, however its runs are pruned."""
 
 
-def needs(plan, planner) -> dict:
+def needs(plan) -> dict:
     """What the plan writes: {'references', 'maps': bytes, 'tests': (scene, protocol) -> (bytes
     of its new runs whole, bytes once pruned to their kept frames), 'run': the most one run's
     pruning frees}. A run two tests read counts once, for the first."""
-    refs = sum(t.args[3] * t.args[4] * REFERENCE_BYTES for t in plan.tasks.values()
+    refs = sum(t.spec.width * t.spec.height * REFERENCE_BYTES for t in plan.tasks.values()
                if t.kind == "reference" and not t.likely_cached)
-    made = set(planner._run_task_of)            # run keys this plan makes
+    made = {k for t in plan.tasks.values() if t.kind == "run" for k in t.spec.keys.values()}   # runs it makes
     seen, tests, maps, run = set(), {}, 0, 0
     for test in plan.tests:
         px = test.width * test.height

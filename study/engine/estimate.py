@@ -43,22 +43,21 @@ def work(plan, cache=None) -> dict[str, SceneWork]:
     from study.engine.tasks import load_scene
     out: dict[str, SceneWork] = {}
     for task in plan.tasks.values():
+        s = task.spec
+        spec, w, h = s.scene, s.width, s.height
         if task.kind == "reference":
-            _, spec, t, w, h, settings = task.args
             scene = load_scene(spec)
             sw = _get(out, spec, scene, w, h)
-            if cache is None or not cache.has(scene, t, w, h, **settings):
+            if cache is None or not cache.has(scene, s.t, w, h, **s.settings):
                 sw.references += 1
         elif task.kind == "agreement":
-            _, spec, w, h, samples = task.args[:5]
-            _get(out, spec, load_scene(spec), w, h).agreement_frames += samples + 1
+            _get(out, spec, load_scene(spec), w, h).agreement_frames += s.samples + 1
         elif task.kind == "run":
-            _, spec, w, h, protocol, configs = task.args[:6]
             scene = load_scene(spec)
             sw = _get(out, spec, scene, w, h)
-            schedule = protocol.schedule(scene)
+            schedule = s.protocol.schedule(scene)
             frames = set()      # as study.engine.drive.FrameSource memoises them (one per render size)
-            for c in configs:
+            for c in s.configs:
                 inp = c.make().inputs
                 sw.configs[c.label] = c
                 steps = schedule if inp.sampling == "sequence" else judged_steps(schedule, inp.sampling)
@@ -72,11 +71,10 @@ def work(plan, cache=None) -> dict[str, SceneWork]:
             # a frame below the output's size costs its share of the pixels (an upscaler's)
             sw.raster_frames += round(sum(f[0][0] * f[0][1] for f in frames) / (w * h), 3)
         elif task.kind == "metrics":
-            _, spec, w, h, items = task.args[:5]
             sw = _get(out, spec, load_scene(spec), w, h)
-            for it in items:
+            for it in s.items:
                 sw.judged[it["label"]] = sw.judged.get(it["label"], 0) + len(it["frame_times"])
-            sw.reference_reads += len({t for it in items for t in it["frame_times"].values()})
+            sw.reference_reads += len({t for it in s.items for t in it["frame_times"].values()})
     return out
 
 

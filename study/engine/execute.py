@@ -75,13 +75,12 @@ class Executor:
 
 @dataclass(frozen=True)
 class Call:
-    """A task's function and arguments, opaque to Dask (so an argument that happens to equal a key,
+    """A task's spec (study.engine.specs), opaque to Dask (so a field that happens to equal a key,
     such as the task's own key, is not taken for a dependency)."""
-    fn: object
-    args: tuple
+    spec: object
 
     def __call__(self, deps):
-        return self.fn(*self.args)
+        return self.spec()
 
 
 # What a task returns in place of its result when the session's deadline had passed as it would start.
@@ -107,7 +106,7 @@ def _run(call: Call, deps, deadline=None):
 def graph(plan, deadline: float | None = None) -> dict:
     """The Dask graph of a plan: key -> (run, Call, [dependency keys], deadline); dependencies only
     order the tasks (their results are small records; the data they made is read from the cache)."""
-    return {key: (_run, Call(t.fn, t.args), list(t.deps), deadline) for key, t in plan.tasks.items()}
+    return {key: (_run, Call(t.spec), list(t.deps), deadline) for key, t in plan.tasks.items()}
 
 
 class _Bar:

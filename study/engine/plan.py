@@ -20,13 +20,9 @@ from provenance import Normalized, task_key
 
 from study.config.protocols import Protocol, judged_steps
 from study.config.techniques import TechniqueConfig
-from study.engine import agreement as A
-from study.engine import judge as J
-from study.engine import reference_task as R
-from study.engine import run_task as RT
 from study.engine import tasks as T
-from study.engine import video_task as V
 from study.engine.reuse_chain import chain_reuse
+from study.engine.specs import AgreementSpec, MetricsSpec, ReferenceSpec, RunSpec, Task, VideoSpec
 
 
 # The code each task kind's key names (with, for a run, the technique's class): provenance hashes
@@ -38,16 +34,6 @@ CODE = {
     "agreement": ("study.engine.agreement",),
     "video": ("study.engine.video_task", "study.metrics.video", "study.metrics.uncertainty", "display"),
 }
-
-
-@dataclass
-class Task:
-    key: str
-    kind: str                     # reference | run | metrics | agreement | video
-    fn: object
-    args: tuple
-    deps: tuple = ()
-    likely_cached: bool = False   # its artefact's file is there: a cache hit, unless damaged
 
 
 @dataclass
@@ -177,8 +163,8 @@ class Planner:
             # a reference that keeps the previous frame's pixels (references.reuse) runs after it
             deps = (self._reference(spec, scene, t - 1, w, h, settings),) if reuses(
                 scene, t, w, h, settings.get("reuse", False), settings.get("reuse_since", 0)) else ()
-            self.plan.tasks[key] = Task(key, "reference", R.reference_task, (self.ctx, spec, t, w, h, dict(settings)),
-                                        deps, likely_cached=ReferenceCache(self.store.root).has(scene, t, w, h, **settings))
+            self.plan.tasks[key] = Task(key, ReferenceSpec(self.ctx, spec, t, w, h, dict(settings)), deps,
+                                        likely_cached=ReferenceCache(self.store.root).has(scene, t, w, h, **settings))
         return key
 
     # -- tests -----------------------------------------------------------------------------------------
@@ -239,7 +225,7 @@ class Planner:
                             [key] + [ref_keys[t] for t in ts] + [disp_keys[t] for t in ts], code=CODE["metrics"])
             mfolder = self.store.root / "metrics" / scene.name / mkey
             test.metrics_keys[c.label], test.metrics_folders[c.label] = mkey, str(mfolder)
-            mrec = self.store.done(mfolder, mkey, verify_files=bool(mf))
+            mrec = self._complete(mfolder, mkey, verify_files=bool(mf))
             if mrec is not None and self._run_intact(folder, key, verify=bool(mf)) and (
                     c.label not in whole or self.store.done(folder, key, whole=True)):
                 self.plan.cached[mkey] = {"kind": "metrics", "key": mkey, "data": mrec["data"], "computed": False}
@@ -248,8 +234,8 @@ class Planner:
         test.reference_tasks = ref_keys
         if missing:
             # The metrics task reads every frame of its run: a run with a damaged file is re-made.
-            need_run = [c for c in missing if self.store.done(Path(test.run_folders[c.label]), test.run_keys[c.label],
-                                                              verify_files=True, whole=True) is None]
+            need_run = [c for c in missing if self._complete(Path(test.run_folders[c.label]), test.run_keys[c.label],
+                                                             verify_files=True, whole=True) is None]
             # a run another test already plans (a technique without history judged at the same
             # instants, e.g. under the cold and the warm ghosting protocol) is made once
             shared = {c.label: self._run_task_of[test.run_keys[c.label]] for c in need_run
@@ -265,7 +251,7 @@ class Planner:
                 rkey = task_key("runs", sorted(test.run_keys[c.label] for c in need_run))
                 feeds = {c.label: [(test.metrics_folders[c.label], test.metrics_keys[c.label])] for c in need_run}
                 self._feeds_of.update({test.run_keys[c.label]: feeds[c.label] for c in need_run})
-                self.plan.tasks[rkey] = Task(rkey, "run", RT.run_task, (
+                self.plan.tasks[rkey] = Task(rkey, RunSpec(
                     self.ctx, spec, w, h, protocol, need_run, {c.label: test.run_keys[c.label] for c in need_run},
                     {c.label: test.run_folders[c.label] for c in need_run}, self.display_settings, feeds), rdeps)
                 run_dep = (rkey,)
@@ -283,8 +269,8 @@ class Planner:
                           "keep": test.keep[c.label] if self.prunes(test) else None, "hdr": test.protocol.hdr,
                           "key": test.metrics_keys[c.label], "folder": test.metrics_folders[c.label]} for c in mine]
                 gkey = task_key("metrics-of", sorted(it["key"] for it in items))
-                self.plan.tasks[gkey] = Task(gkey, "metrics", J.metrics_task,
-                                             (self.ctx, spec, w, h, items, {t: at[t] for t in ts}, self.display_settings), deps)
+                self.plan.tasks[gkey] = Task(gkey, MetricsSpec(
+                    self.ctx, spec, w, h, items, {t: at[t] for t in ts}, self.display_settings), deps)
                 self._metrics_task_of.update({it["key"]: gkey for it in items})
         if self.is_final((scene.name, protocol.name)) and vlabels:
             made = {c.label: self._run_task_of.get(test.run_keys[c.label]) for c in configs}
@@ -309,7 +295,7 @@ class Planner:
                             code=CODE["video"])
             folder = self.store.root / "video" / scene.name / vkey
             test.video_keys[c.label] = vkey
-            rec = self.store.done(folder, vkey, verify_files=True)
+            rec = self._complete(folder, vkey, verify_files=True)
             if rec is not None:
                 self.plan.cached[vkey] = {"kind": "video", "key": vkey, "data": rec["data"], "computed": False}
                 continue
@@ -322,7 +308,7 @@ class Planner:
                 self._reference(spec, scene, t, test.width, test.height, s)
                 for t in it["ts"] for s in (at[t], self.display_settings)))
             gkey = task_key("video-of", [it["key"]])
-            self.plan.tasks[gkey] = Task(gkey, "video", V.video_task, (
+            self.plan.tasks[gkey] = Task(gkey, VideoSpec(
                 self.ctx, spec, test.width, test.height, [it], {t: at[t] for t in it["ts"]},
                 self.display_settings, video.key_data(), test.protocol.kind), deps)
 
@@ -358,7 +344,17 @@ class Planner:
         """A run whose frames the report reads must be intact too (else it is re-made)."""
         if not verify:
             return True
-        return self.store.done(folder, key, verify_files=True) is not None
+        return self._complete(folder, key, verify_files=True) is not None
+
+    def _complete(self, folder: Path, key: str, verify_files: bool = False, whole: bool = False) -> dict | None:
+        """A folder's done record if it is complete (study.engine.store.Store.check); one found
+        tampered is removed here, so that every task that reads it later sees it missing and makes
+        it again (a task checks a record's seal, not every file it lists)."""
+        from study.engine.store import TAMPERED
+        got = self.store.check(folder, key, verify_files, whole)
+        if got.status == TAMPERED:
+            self.store.invalidate(folder, got.problem)
+        return got.record
 
     def add_agreement(self, spec: str, scene, w: int, h: int, protocol: str) -> None:
         """The raster against frame 0's reference at the precision of `protocol`'s test (the static one)."""
@@ -375,7 +371,7 @@ class Planner:
         if data is not None:
             self.plan.cached[key] = {"kind": "agreement", "key": key, "data": data, "computed": False}
             return
-        self.plan.tasks[key] = Task(key, "agreement", A.agreement_task, (
+        self.plan.tasks[key] = Task(key, AgreementSpec(
             self.ctx, spec, w, h, self.agreement_samples, settings, self.display_settings, key, str(path)),
             tuple(dict.fromkeys((self._reference(spec, scene, 0, w, h, settings),
                                  self._reference(spec, scene, 0, w, h, self.display_settings)))))

@@ -40,8 +40,10 @@ rule = "per_pixel" is the former rule: every reference at the [reference] bound,
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 from provenance import task_key
+from study.engine.rounds import FigureKey, InstantKey, TestKey, instant_levels
 from study.metrics import uncertainty as U
 
 
@@ -104,28 +106,39 @@ def levels_asked(u: float, tol: float | None) -> int:
 
 
 def level_at(levels: dict, test: tuple, t) -> int:
-    """The level of a test's references at instant t: its own (test + (t,)) where an instant was
+    """The level of a test's references at instant t: its own (an InstantKey) where an instant was
     refined alone, else the test's."""
-    return levels.get((*test, t), levels.get(test, 0))
+    return levels.get(InstantKey(*test, t), levels.get(test, 0))
 
 
-def decide(now: dict, before: dict, levels: dict, precision, over: dict, drifts: dict,
-           instants: dict | None = None) -> tuple[dict, set]:
+class Decision(NamedTuple):
+    """One round of the rule: the instants to refine, the tests judged, and the state after it (new
+    dicts; decide's arguments are left as they were)."""
+    finer: dict                   # TestKey -> {t: the level to render next} (t None: the test as a whole)
+    judged: set                   # the tests judged this round
+    over: dict                    # TestKey -> its figures over tolerance, their uncertainty the drift included
+    drifts: dict                  # TestKey -> FigureKey -> drift
+    before: dict                  # TestKey -> ({t: bound}, figures) this round judged it at
+
+
+def decide(now: dict, before: dict, levels: dict, precision, over: dict | None = None, drifts: dict | None = None,
+           instants: dict | None = None) -> Decision:
     """One round of the rule, instant by instant. `now`: test -> its figures ((value, halves'
     uncertainty) by (protocol, label, frame, metric), as figures_of gives with the protocol
     prefixed); `instants`: test -> (label, frame) -> the scene time whose reference judges that
     frame (a figure of no frame, the temporal RMS, depends on every instant of the test);
     `levels`: test -> level, test + (t,) -> an instant's own level; `before`: test -> ({t: bound},
-    figures) of the round before, updated here. A figure is refined where its own instants are: a
+    figures) of the round before. A figure is refined where its own instants are: a
     ghosting test whose FLIP of two frames is over renders those two frames' references again,
     not the sequence's (at 320x180, 22 of hairball_rotating_lit's 24 frames stay at 1 LSB rather
     than 0.5: 4x fewer samples each). A test none of whose bounds changed is left as decided; for
-    the others `over` (test -> the figures over tolerance, their uncertainty the drift included)
-    and `drifts` (test -> figure -> drift) are set. Returns (test -> {t: the level to render
-    next} for the instants to refine (t None: a test of no known instants, as a whole), the tests
-    judged this round)."""
+    the others its figures over tolerance (their uncertainty the drift included) and its drifts
+    are decided anew. Returns a Decision: `over`, `drifts` and `before` are copies of the
+    arguments with the tests judged this round replaced."""
     instants = instants or {}
     finer, judged = {}, set()
+    before, over = dict(before), dict(over or {})
+    drifts = {k: dict(v) for k, v in (drifts or {}).items()}
     most = precision.levels()
     for k in sorted(now):
         where = instants.get(k, {})
@@ -139,6 +152,7 @@ def decide(now: dict, before: dict, levels: dict, precision, over: dict, drifts:
         kept = drifts.setdefault(k, {})
         figs = {}
         for f, (v, u) in now[k].items():
+            f = FigureKey(*f)
             ts = _instants_of(f, where, every)
             changed = [t for t in ts if t in prev_bounds and prev_bounds[t] != bounds[t]]
             if changed and f in prev:      # what both halves share: the change from the coarser bound
@@ -150,7 +164,7 @@ def decide(now: dict, before: dict, levels: dict, precision, over: dict, drifts:
         want: dict = {}
         for f, (v, u) in figs.items():
             ts = _instants_of(f, where, every)
-            tol = U.tolerance(f[-1], v, precision.tolerances)
+            tol = U.tolerance(f.metric, v, precision.tolerances)
             first = all(lv[t] == 0 for t in ts) and precision.confirm
             is_over = tol is not None and u > tol
             if not (is_over or first):
@@ -162,7 +176,7 @@ def decide(now: dict, before: dict, levels: dict, precision, over: dict, drifts:
         # a figure under its tolerance still asks, at an instant refined anyway, for what it needs
         for f, (v, u) in figs.items():
             ts = [t for t in _instants_of(f, where, every) if t in want]
-            tol = U.tolerance(f[-1], v, precision.tolerances)
+            tol = U.tolerance(f.metric, v, precision.tolerances)
             if ts and len(ts) == len(_instants_of(f, where, every)):
                 ask = levels_asked(u, tol)
                 for t in ts:
@@ -171,13 +185,13 @@ def decide(now: dict, before: dict, levels: dict, precision, over: dict, drifts:
         if step:
             finer[k] = step
         before[k] = (bounds, now[k])
-    return finer, judged
+    return Decision(finer, judged, over, drifts, before)
 
 
-def _instants_of(figure: tuple, where: dict, every: list) -> list:
-    """The instants a figure ((protocol, label, frame, metric)) is judged against: its frame's, or
-    every instant of the test for a figure of no frame (or a frame no instant is known for)."""
-    t = where.get((figure[1], figure[2]), _NONE) if figure[2] is not None else _NONE
+def _instants_of(figure: FigureKey, where: dict, every: list) -> list:
+    """The instants a figure is judged against: its frame's, or every instant of the test for a
+    figure of no frame (or a frame no instant is known for)."""
+    t = where.get((figure.label, figure.frame), _NONE) if figure.frame is not None else _NONE
     return every if t is _NONE else [t]
 
 
@@ -190,7 +204,7 @@ def to_record(levels: dict, tried: dict, over: dict, drifts: dict) -> dict:
     rule decides the same (every task is deterministic), so it replays these instead of planning
     and reading every round again."""
     return {"tests": [{"test": list(k), "level": levels.get(k, 0), "tried": list(tried[k]),
-                       "instants": sorted([[x[-1], n] for x, n in levels.items() if len(x) == len(k) + 1 and x[:-1] == k]),
+                       "instants": sorted([[t, n] for t, n in instant_levels(levels, k).items()]),
                        "over": [list(x) for x in over.get(k, [])],
                        "drift": [[*f, d] for f, d in drifts.get(k, {}).items()]} for k in sorted(tried)]}
 
@@ -199,11 +213,11 @@ def from_record(rec: dict) -> tuple[dict, dict, dict, dict]:
     """(levels, tried, over, drifts) of a to_record record."""
     levels, tried, over, drifts = {}, {}, {}, {}
     for t in rec["tests"]:
-        k = tuple(t["test"])
+        k = TestKey(*t["test"])
         levels[k], tried[k] = int(t["level"]), list(t["tried"])
-        levels.update({(*k, i): int(n) for i, n in t.get("instants", [])})
+        levels.update({InstantKey(*k, i): int(n) for i, n in t.get("instants", [])})
         over[k] = [tuple(x) for x in t["over"]]
-        drifts[k] = {tuple(d[:-1]): d[-1] for d in t["drift"]}
+        drifts[k] = {FigureKey(*d[:-1]): d[-1] for d in t["drift"]}
     return levels, tried, over, drifts
 
 
@@ -231,8 +245,7 @@ def settle(store, precision, probes: dict, levels: dict) -> None:
     their keys; what `settled` reads)."""
     for k, refs in probes.items():
         path, key = _settled_path(store, precision, k, refs)
-        rec = {"level": levels.get(k, 0),
-               "instants": sorted([[x[-1], n] for x, n in levels.items() if len(x) == len(k) + 1 and x[:-1] == k])}
+        rec = {"level": levels.get(k, 0), "instants": sorted([[t, n] for t, n in instant_levels(levels, k).items()])}
         old = store.load_record(path, key) or {}
         if (old.get("level"), old.get("instants", [])) != (rec["level"], rec["instants"]):
             store.save_record(path, key, rec)
@@ -244,8 +257,8 @@ def settled(store, precision, probes: dict) -> dict:
     for k, refs in probes.items():
         rec = store.load_record(*_settled_path(store, precision, k, refs))
         if rec is not None and (rec.get("level", 0) > 0 or rec.get("instants")):
-            out[k] = int(rec.get("level", 0))
-            out.update({(*k, t): int(n) for t, n in rec.get("instants", [])})
+            out[TestKey(*k)] = int(rec.get("level", 0))
+            out.update({InstantKey(*k, t): int(n) for t, n in rec.get("instants", [])})
     return out
 
 
@@ -255,7 +268,7 @@ def decisions(store, precision, plan, agreement: bool) -> dict:
     that decides; with the record of an earlier study of that key, if one is there."""
     key = task_key("precision", {"precision": repr(precision), "agreement": agreement,
                                  "metrics": sorted(k for t in plan.tests for k in t.metrics_keys.values())},
-                   code=["study.engine.precision", "study.engine.runner"])
+                   code=["study.engine.precision", "study.engine.runner", "study.engine.rounds"])
     path = store.record_path("precision", "decisions", key)
     return {"store": store, "path": path, "key": key, "replayed": store.load_record(path, key)}
 
@@ -272,7 +285,7 @@ def inputs_key(study, specs, configs, flags: list) -> str:
                                          "scenes": [(s, load_scene(s).content_hash) for s in specs],
                                          "columns": [(c.label, c.key_data()) for c in cols]},
                     code=[*{c.code() for c in cols}, *CODE["run"], *CODE["metrics"], *CODE["reference"],
-                          "study.engine.plan", "study.engine.precision", "study.engine.runner"])
+                          "study.engine.plan", "study.engine.precision", "study.engine.runner", "study.engine.rounds"])
 
 
 def recall(store, inputs: str) -> dict | None:

@@ -4,10 +4,12 @@ judged frames and a metrics record's maps, each verified against its done record
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from references.settings import SE_BOUND_LSB
 
 from study.config.defaults import THESIS_HISTORY
 from study.engine.plan import shown_frames  # noqa: F401  (the frames the report's sliders show)
@@ -121,3 +123,67 @@ def view(full: TestResult, label: str, n: int) -> TestResult:
     return v
 
 
+def with_drift(res: TestResult, drifts: dict) -> TestResult:
+    """A figure's stated uncertainty: its halves' plus its change from the coarser bound (`drifts`:
+    test -> figure -> drift, study.engine.precision.decide)."""
+    change = drifts.get((res.scene, res.test), {})
+    if not change:
+        return res
+    res.uncertainty = {label: {f: {m: u + change.get((res.test, label, f, m), 0.0) if u is not None else None
+                                   for m, u in us.items()} for f, us in per.items()}
+                       for label, per in res.uncertainty.items()}
+    res.temporal_u = {label: u + change.get((res.test, label, None, "temporal"), 0.0) if u is not None else None
+                      for label, u in res.temporal_u.items()}
+    return res
+
+
+def run_records(root: Path, test) -> dict:
+    """label -> the done record of each run of a planned test (None where it is not complete)."""
+    from study.engine.store import Store
+    store = Store(root)
+    return {c.label: store.done(Path(test.run_folders[c.label]), test.run_keys[c.label]) for c in test.configs}
+
+
+def test_result(root: Path, test, results: dict, costs: dict) -> TestResult:
+    """A planned test's TestResult from the tasks' results (key -> result), its runs' records and
+    the measured costs ((scene, label) -> cost)."""
+    recs = run_records(root, test)
+    res = TestResult(test.scene, test.protocol.name, [], {}, {}, width=test.width, height=test.height,
+                     kind=test.protocol.kind, reference_bound_lsb=test.ref_settings.get("se_bound_lsb", SE_BOUND_LSB),
+                     reference_bounds_lsb={t: s.get("se_bound_lsb", SE_BOUND_LSB) for t, s in test.ref_settings_at.items()},
+                     reference_keys={t: k for t, k in test.reference_tasks.items()})
+    frames = set()
+    for c in test.configs:
+        m = results[test.metrics_keys[c.label]]
+        if m["computed"]:
+            res.recomputed.append(c.label)
+        per = {int(f): v for f, v in m["data"]["per_frame"].items()}
+        res.per_frame[c.label] = per
+        res.uncertainty[c.label] = {int(f): v for f, v in m["data"]["uncertainty"].items()}
+        res.temporal_u[c.label] = m["data"].get("temporal_u")
+        frames |= set(per)
+        t = m["data"].get("temporal")
+        res.temporal[c.label] = math.nan if t is None else t
+        rec = recs[c.label] or {}
+        if rec.get("stats"):
+            res.stats[c.label] = {int(f): v for f, v in rec["stats"].items()}
+        cost = costs.get((test.scene, c.label), {})
+        res.costs[c.label] = cost
+        res.ms[c.label] = cost.get("total_ms", math.nan)
+        res.artefacts[c.label] = {"folder": test.run_folders[c.label], "run_key": test.run_keys[c.label],
+                                  "metrics_key": test.metrics_keys[c.label],
+                                  "metrics_folder": test.metrics_folders[c.label],
+                                  "output_space": (rec or {}).get("output_space", "linear"),
+                                  "technique": c.name, "overrides": list(c.overrides),
+                                  "maps_for": test.maps_for[c.label]}
+    for label, vkey in test.video_keys.items():
+        if vkey in results:
+            res.jod[label] = {k: v for k, v in results[vkey]["data"]["jod"].items()}
+            res.jod_u[label] = dict(results[vkey]["data"]["jod_u"])
+            res.video = {k: results[vkey]["data"][k] for k in ("metric", "display", "fps")}
+            res.artefacts[label]["video_key"] = vkey
+            res.artefacts[label]["video_folder"] = str(Path(root) / "video" / test.scene / vkey)
+    res.frames = sorted(frames)
+    if test.protocol.kind == "static":
+        res.checkpoints = res.per_frame
+    return res

@@ -8,10 +8,10 @@ code. A second study with nothing changed plans no task and only re-reads small 
 """
 from __future__ import annotations
 
-import math
+import sys
 import time
 from collections import Counter
-import sys
+from dataclasses import replace
 from pathlib import Path
 
 from provenance import code_snapshot
@@ -28,8 +28,11 @@ from study.config.precision import Precision
 from study.engine import disk as D
 from study.engine import precision as P
 from study.engine.precision import decide, figures_of
+from study.engine.rounds import FigureKey, InstantKey, Progress, Request, Round, TestKey, log_judged
+from study.engine.rounds import seeded_early as _seeded_early
+from study.engine.store import Store
 from study.engine.stopping import StudyStopped, computed_counts, stop
-from study.engine.results import Artefacts, StudyResults, TestResult, view
+from study.engine.results import Artefacts, StudyResults, TestResult, run_records, test_result, view, with_drift
 from study.engine.tasks import Context, display_of, load_scene
 
 
@@ -52,8 +55,8 @@ class Study:
         self.ref_settings = dict(self.profile.ref_settings)
         self.precision: Precision = self.profile.precision
         self.display_settings = self.precision.display_settings(self.ref_settings)
-        # (scene name, protocol name) -> the test's precision level, + (scene time,) -> an instant's
-        # own where it was refined alone (study.engine.precision)
+        # TestKey -> the test's precision level, InstantKey -> an instant's own where it was
+        # refined alone (study.engine.precision; the precision loop's state sets them each round)
         self.levels: dict[tuple, int] = {}
         self.drifts: dict = {}
         self._tests: dict = {}        # (scene name, protocol name) -> its Test in the latest plan
@@ -122,7 +125,7 @@ class Study:
         scenes = [(spec, load_scene(spec)) for spec in specs]
         protos = [self.profile.static, *self.profile.ghosting]
         ref_of = {(scene.name, p.name): self.settings_for(scene.name, p.name) for _, scene in scenes for p in protos}
-        ref_of.update({k: self.settings_for(*k) for k in self.levels if len(k) == 3})
+        ref_of.update({k: self.settings_for(*k) for k in self.levels if isinstance(k, InstantKey)})
         planner = Planner(self.ctx, self.ref_settings, self.profile.agreement_samples if agreement else None, ref_of,
                           self.display_settings, video=self.profile.video, video_final=final, prune=prune)
         statics, ghosts, sweeps, sharpens = [], [], [], []
@@ -163,134 +166,175 @@ class Study:
         until none is or the finest bound is reached (study.engine.precision). `seeded`: a test an
         earlier study settled (the same references) starts at the bound it settled at, not at the
         probe (an A/B comparison: its new column is judged there, and refined only if over)."""
-        rounds, tried, over, before = [], {}, {}, {}    # over: (scene, protocol) -> figures over at its bound
-        self.drifts = {}              # (scene, protocol) -> (protocol, label, frame, metric) -> drift
-        figures = self.precision.rule == "figures"
-        # the agreement (64-256 raster frames a scene) and the video metric against the final references:
-        # a test's as soon as it is settled (`early`: its tasks fill the rounds other tests still refine in)
-        settled, early = not figures, frozenset()
-        memo, probes = None, None     # the record of this study's decisions (figures rule)
-        pruned = None                 # the tests whose runs are pruned once judged (study.engine.disk)
-        from study.engine.store import Store
-        inputs = P.inputs_key(self, specs, configs, [agreement, sweep, ghosting, sharpen, seeded]) if figures else None
-        if inputs and (memo := P.recall(Store(self.cache.root), inputs)):    # no probe plan needed
-            self.levels, tried, over, self.drifts = P.from_record(memo["replayed"])
-            self.log("precision: every test's bound as decided by an earlier study of the same inputs")
-            settled = True
+        ask = Request(specs, configs, agreement, sweep, ghosting, sharpen, seeded)
+        state = self.recall_decisions(ask)
         with Session(self.executor, self.log, self.deadline) as session:     # one cluster for every round
-            while True:
-                with code_snapshot():
-                    plan, scenes, statics, ghosts, sweeps, sharpens = self.plan(specs, configs, agreement, sweep, ghosting,
-                                                                      final=settled or early, sharpen=sharpen,
-                                                                      prune=True if not figures else pruned or frozenset())
-                # which tests' runs the disk keeps whole while they refine (each round: finer references take room)
-                was = pruned or frozenset()
-                pruned = D.fit(D.needs(plan, self.planner), D.free_bytes(self.cache.root), figures,
-                               self.cache.root, was, self.log)
-                if figures and pruned != was:
-                    continue            # planned again: their metrics prune their runs
+            while not state.finished:
+                state, rnd = self.plan_round(ask, state)
+                state = self.execute_round(session, rnd, state)
+                if not state.finished:
+                    state = self.decide_next(ask, rnd, state, self.judge_round(rnd, state))
+        self.file_decisions(state)
+        return self.gather(rnd, state, session)
 
-                if figures and memo is None:      # the probe's plan: did a study decide from it before?
-                    memo = P.decisions(Store(self.cache.root), self.precision, plan, agreement)
-                    probes = {(t.scene, t.protocol.name): sorted(t.reference_tasks.values()) for t in statics + ghosts + sweeps}
-                    seeds = P.settled(memo["store"], self.precision, probes) if seeded and not memo["replayed"] else {}
-                    if seeds:
-                        self.levels.update(seeds)
-                        seeded_tests = {x[:2] for x in seeds}
-                        self.log(f"precision: {len(seeded_tests)} of {len(probes)} tests start at the bound an earlier study settled")
-                        # their agreement and video are planned now, beside the new columns' runs: an
-                        # earlier study's bound usually holds (else they are made again at the finer one)
-                        early = _seeded_early(probes, seeded_tests, {p.name for p in self.profile.ghosting})
-                        continue
-                    if memo["replayed"]:
-                        self.levels, tried, over, self.drifts = P.from_record(memo["replayed"])
-                        self.log("precision: every test's bound as decided by an earlier study of the same tasks")
-                        settled = True        # the final round alone: plan it
-                        continue
-                instants: dict = {}       # test -> (label, frame) -> the scene time judging it
-                for t in statics + ghosts + sweeps:
-                    instants.setdefault((t.scene, t.protocol.name), {}).update(
-                        {(label, f): time for label, ft in t.frame_times.items() for f, time in ft.items()})
-                for k in sorted(instants):
-                    b, seen = min(self.bounds_of(*k, set(instants[k].values())) or [self.bound_of(*k)]), tried.setdefault(k, [])
-                    if not seen or seen[-1] != b:
-                        seen.append(b)
-                counts = plan.counts()
-                if plan.tasks:
-                    self.log(f"study: {len(plan.tasks)} tasks to compute ({', '.join(f'{k} {n}' for k, n in sorted(counts.items()))})"
-                             f", {len(plan.cached)} complete; executor: {self.executor.describe()}")
-                t0, spent = time.perf_counter(), Counter(session.task_seconds)
-                if plan.tasks and session.past_deadline():
-                    stop(rounds, {}, Counter(t.kind for t in plan.tasks.values()))
-                results = session.execute(plan, self.progress)
-                for key in [k for k, v in results.items() if "records" in v]:   # a metrics or video task: by key
-                    task = results.pop(key)
-                    results.update({mkey: {"kind": task["kind"], "key": mkey, **rec} for mkey, rec in task["records"].items()})
-                if session.not_started:   # the deadline came: what finished is cached, nothing is decided
-                    stop(rounds, results, session.not_started)
-                if plan.tasks:
-                    spent, reused = session.task_seconds - spent, sum(v.get("frames_reused", 0) for v in results.values())
-                    self.log(f"study: round {len(rounds) + 1} took {time.perf_counter() - t0:.1f} s wall; task seconds "
-                             + ", ".join(f"{k} {v:.1f}" for k, v in sorted(spent.items()))
-                             + (f"; {reused} technique-frames' figures taken from an earlier round's" if reused else ""))
-                rounds.append((counts, results))
-                if settled:
-                    break
-                now: dict = {}
-                for t in statics + ghosts + sweeps:        # a sweep shares its protocol's references
-                    now.setdefault((t.scene, t.protocol.name), {}).update(
-                        {(t.protocol.name, *k): v for k, v in figures_of(self._result(t, results, {})).items()
-                         if k[0] not in self.precision.exempt and P.printed(t.protocol, k[-1])})
-                levels = {**self.levels, **{(*k, t): self.level_of(*k, t) for k in instants for t in instants[k].values()}}
-                finer, judged = decide(now, before, levels, self.precision, over, self.drifts, instants)
-                # a settled test's runs drop the frames the report does not read; the others stay
-                # whole, judged again at the finer bound without being re-made
-                self.planner.prune_runs(lambda k: k not in finer)
-                for k in sorted(judged):
-                    every = set(instants[k].values())
-                    name, b = f"{k[0]} ({k[1]})", P.bounds_text(self.bounds_of(*k, every))
-                    nxt = ""
-                    if k in finer:
-                        to = Counter(self.precision.bound(n) for n in finer[k].values())
-                        nxt = "references again at " + P.bounds_text(to) + (
-                            f" ({len(finer[k])} of {len(every)} instants)" if len(finer[k]) < len(every) else "")
-                    if not over[k]:
-                        if k in finer:
-                            self.log(f"precision: {name}: every figure within its tolerance at the probe ({b} LSB); {nxt}, "
-                                     "where the figures ask for it and the drift can be measured")
-                        elif len(tried.get(k, ())) == 1:
-                            first = "probe" if b == f"{self.precision.start_bound_lsb:g}" else "first bound (an earlier study's)"
-                            self.log(f"precision: {name}: every figure within its tolerance at its {first} ({b} LSB): settled")
-                        continue
-                    label, tech, f, m, u, tol = over[k][0]
-                    self.log(f"precision: {name}: {len(over[k])} figures over their tolerance at {b} LSB, the worst "
-                             f"{m} of {tech} ({label}, frame {f}) +-{u:.3g} > {tol:.3g}; "
-                             + (nxt if k in finer else "the finest bound: reported"))
-                if not finer:
-                    if (not agreement and not self.profile.video.on) or all(k in early for k in instants):
-                        break         # nothing asks for the final references, or this round planned it all
-                    settled = True    # one more round: what the last tests settled ask for (the rest is cached)
-                # settled: not refined, nor is a ghosting protocol of its scene (they share the instants' references)
-                ghost = {p.name for p in self.profile.ghosting}
-                moving = {(s, p) for s, q in finer for p in ({q} | (ghost if q in ghost else set()))}
-                early = frozenset(k for k in instants if k not in moving)
-                self.levels.update({k if t is None else (*k, t): n for k, step in finer.items() for t, n in step.items()})
+    # -- the precision loop's steps (study.engine.rounds) ----------------------------------------------
+    def _adopt(self, state: Progress) -> Progress:
+        """The levels and drifts the plan and the results read are the state's."""
+        self.levels, self.drifts = state.levels, state.drifts
+        return state
+
+    def recall_decisions(self, ask: Request) -> Progress:
+        """The state a study starts from: every test at its probe (the levels set on the study), or,
+        under the figures' rule, every bound an earlier study of the same inputs decided (its final
+        round is then the only one)."""
+        figures = self.precision.rule == "figures"
+        state = Progress(levels=dict(self.levels), final=not figures)
+        if figures:
+            inputs = P.inputs_key(self, ask.specs, ask.configs,
+                                  [ask.agreement, ask.sweep, ask.ghosting, ask.sharpen, ask.seeded])
+            state = replace(state, inputs=inputs)
+            if memo := P.recall(Store(self.cache.root), inputs):      # no probe plan needed
+                levels, tried, over, drifts = P.from_record(memo["replayed"])
+                self.log("precision: every test's bound as decided by an earlier study of the same inputs")
+                state = replace(state, levels=levels, tried=tried, over=over, drifts=drifts, memo=memo, final=True)
+        return self._adopt(state)
+
+    def plan_round(self, ask: Request, state: Progress) -> tuple[Progress, Round]:
+        """This round's plan: planned again while the plan itself changes what to plan (the disk
+        prunes more tests' runs; the probe's plan finds an earlier study's decisions)."""
+        rnd = self._plan_once(ask, state)
+        state, again = self._revise(ask, rnd, state)
+        while again:
+            rnd = self._plan_once(ask, state)
+            state, again = self._revise(ask, rnd, state)
+        return state, rnd
+
+    def _plan_once(self, ask: Request, state: Progress) -> Round:
+        figures = self.precision.rule == "figures"
+        self._adopt(state)
+        with code_snapshot():
+            return Round.of(self.plan(ask.specs, ask.configs, ask.agreement, ask.sweep, ask.ghosting,
+                                      final=state.final or state.early, sharpen=ask.sharpen,
+                                      prune=True if not figures else state.pruned))
+
+    def _revise(self, ask: Request, rnd: Round, state: Progress) -> tuple[Progress, bool]:
+        """(the state, whether to plan again) once a plan is made: which tests' runs the disk keeps
+        whole while they refine (each round: finer references take room), and, for the probe's plan,
+        whether a study decided from it before."""
+        figures = self.precision.rule == "figures"
+        pruned = D.fit(D.needs(rnd.plan), D.free_bytes(self.cache.root), figures, self.cache.root, state.pruned,
+                       self.log)
+        if figures and pruned != state.pruned:
+            return replace(state, pruned=pruned), True          # their metrics prune their runs
+        if not figures or state.memo is not None:
+            return state, False
+        memo = P.decisions(Store(self.cache.root), self.precision, rnd.plan, ask.agreement)
+        probes = {TestKey(t.scene, t.protocol.name): sorted(t.reference_tasks.values()) for t in rnd.judged}
+        state = replace(state, memo=memo, probes=probes)
+        seeds = P.settled(memo["store"], self.precision, probes) if ask.seeded and not memo["replayed"] else {}
+        if seeds:
+            seeded_tests = {x.test if isinstance(x, InstantKey) else x for x in seeds}
+            self.log(f"precision: {len(seeded_tests)} of {len(probes)} tests start at the bound an earlier study settled")
+            # their agreement and video are planned now, beside the new columns' runs: an earlier
+            # study's bound usually holds (else they are made again at the finer one)
+            early = _seeded_early(probes, seeded_tests, {p.name for p in self.profile.ghosting})
+            return replace(state, levels={**state.levels, **seeds}, early=early), True
+        if memo["replayed"]:
+            levels, tried, over, drifts = P.from_record(memo["replayed"])
+            self.log("precision: every test's bound as decided by an earlier study of the same tasks")
+            return replace(state, levels=levels, tried=tried, over=over, drifts=drifts, final=True), True
+        return state, False
+
+    def execute_round(self, session: Session, rnd: Round, state: Progress) -> Progress:
+        """Compute the round's plan; the round's results are the state's last. A round whose
+        references are final is the study's last."""
+        tried = {k: list(v) for k, v in state.tried.items()}
+        for k in sorted(rnd.instants):
+            b, seen = min(self.bounds_of(*k, set(rnd.instants[k].values())) or [self.bound_of(*k)]), tried.setdefault(k, [])
+            if not seen or seen[-1] != b:
+                seen.append(b)
+        plan, rounds = rnd.plan, list(state.rounds)
+        counts = plan.counts()
+        if plan.tasks:
+            self.log(f"study: {len(plan.tasks)} tasks to compute ({', '.join(f'{k} {n}' for k, n in sorted(counts.items()))})"
+                     f", {len(plan.cached)} complete; executor: {self.executor.describe()}")
+        t0, spent = time.perf_counter(), Counter(session.task_seconds)
+        if plan.tasks and session.past_deadline():
+            stop(rounds, {}, Counter(t.kind for t in plan.tasks.values()))
+        results = session.execute(plan, self.progress)
+        for key in [k for k, v in results.items() if "records" in v]:   # a metrics or video task: by key
+            task = results.pop(key)
+            results.update({mkey: {"kind": task["kind"], "key": mkey, **rec} for mkey, rec in task["records"].items()})
+        if session.not_started:   # the deadline came: what finished is cached, nothing is decided
+            stop(rounds, results, session.not_started)
+        if plan.tasks:
+            spent, reused = session.task_seconds - spent, sum(v.get("frames_reused", 0) for v in results.values())
+            self.log(f"study: round {len(rounds) + 1} took {time.perf_counter() - t0:.1f} s wall; task seconds "
+                     + ", ".join(f"{k} {v:.1f}" for k, v in sorted(spent.items()))
+                     + (f"; {reused} technique-frames' figures taken from an earlier round's" if reused else ""))
+        return replace(state, tried=tried, rounds=state.rounds + ((counts, results),), finished=state.final)
+
+    def judge_round(self, rnd: Round, state: Progress) -> dict:
+        """TestKey -> the figures that bound its precision (FigureKey -> (value, halves'
+        uncertainty)) from the round's results: those a test prints, of columns not exempt."""
+        results, now = state.rounds[-1][1], {}
+        for t in rnd.judged:
+            now.setdefault(TestKey(t.scene, t.protocol.name), {}).update(
+                {FigureKey(t.protocol.name, *k): v for k, v in figures_of(self._result(t, results, {})).items()
+                 if k[0] not in self.precision.exempt and P.printed(t.protocol, k[-1])})
+        return now
+
+    def decide_next(self, ask: Request, rnd: Round, state: Progress, now: dict) -> Progress:
+        """What the next round renders (study.engine.precision.decide): finer references where the
+        figures ask for them; where none do, one more round only for what the final references
+        feed (the agreement, the video metric) that no round has planned yet, else the study is done."""
+        levels = {**state.levels, **{InstantKey(*k, t): self.level_of(*k, t)
+                                     for k in rnd.instants for t in rnd.instants[k].values()}}
+        d = decide(now, state.before, levels, self.precision, state.over, state.drifts, rnd.instants)
+        # a settled test's runs drop the frames the report does not read; the others stay
+        # whole, judged again at the finer bound without being re-made
+        self.planner.prune_runs(lambda k: k not in d.finer)
+        state = self._adopt(replace(state, over=d.over, drifts=d.drifts, before=d.before))
+        log_judged(self.log, self.precision, d.judged, d.finer, state, rnd, self.bounds_of)
+        if not d.finer:
+            if (not ask.agreement and not self.profile.video.on) or all(k in state.early for k in rnd.instants):
+                return replace(state, finished=True)   # nothing asks for the final references, or planned already
+            state = replace(state, final=True)   # one more round: what the last tests settled ask for
+        # settled: not refined, nor is a ghosting protocol of its scene (they share the instants' references)
+        ghost = {p.name for p in self.profile.ghosting}
+        moving = {(s, p) for s, q in d.finer for p in ({q} | (ghost if q in ghost else set()))}
+        refined = {TestKey(*k) if t is None else InstantKey(*k, t): n for k, step in d.finer.items() for t, n in step.items()}
+        return self._adopt(replace(state, early=frozenset(k for k in rnd.instants if k not in moving),
+                                   levels={**state.levels, **refined}))
+
+    def file_decisions(self, state: Progress) -> None:
+        """Prune every run to its kept frames and record the decisions (each test's bound, under its
+        probe references and under the study's inputs) for a later study to replay or start from."""
+        self._adopt(state)
         self.planner.prune_runs(lambda k: True)
-        if probes is not None:
-            P.settle(Store(self.cache.root), self.precision, probes, self.levels)
+        store, memo = Store(self.cache.root), state.memo
+        if state.probes is not None:
+            P.settle(store, self.precision, state.probes, state.levels)
         if memo is not None and not memo["replayed"]:
-            memo["store"].save_record(memo["path"], memo["key"], P.to_record(self.levels, tried, over, self.drifts))
+            memo["store"].save_record(memo["path"], memo["key"],
+                                      P.to_record(state.levels, state.tried, state.over, state.drifts))
         if memo is not None:
-            P.remember(memo["store"], inputs, memo["key"])
-        Store(self.cache.root).save_hashes()
+            P.remember(memo["store"], state.inputs, memo["key"])
+        store.save_hashes()
+
+    def gather(self, rnd: Round, state: Progress, session: Session) -> StudyResults:
+        """The study's results from every round's (a task's first round is the one that computed
+        it; later ones find it cached) and the last round's plan."""
         results: dict = {}
-        for _, r in rounds:       # a task's first round is the one that computed it; later ones find it cached
+        for _, r in state.rounds:
             for k, v in r.items():
                 results.setdefault(k, v)
         counts: dict = {}
-        for c, _ in rounds:
+        for c, _ in state.rounds:
             for k, n in c.items():
                 counts[k] = counts.get(k, 0) + n
+        plan, scenes, statics, ghosts, sweeps, sharpens = (rnd.plan, rnd.scenes, rnd.statics, rnd.ghosts, rnd.sweeps,
+                                                           rnd.sharpens)
 
         by_name = {scene.name: scene for _, scene in scenes}
         out = StudyResults(artefacts=Artefacts(self.cache.root), reference=self._reference_of(scenes),
@@ -298,11 +342,11 @@ class Study:
                            thesis_history=self.profile.thesis_history, tolerances=self.precision.tolerances)
         out.precision = {}
         every = {(t.scene, t.protocol.name): set(t.reference_tasks) for t in statics + ghosts + sweeps}
-        for (name, proto), seen in sorted(tried.items()):
+        for (name, proto), seen in sorted(state.tried.items()):
             bounds = self.bounds_of(name, proto, every.get((name, proto)) or [None])
             out.precision.setdefault(name, {})[proto] = {"bound_lsb": min(bounds), "rule": self.precision.rule,
                                                          "bounds": {f"{b:g}": n for b, n in sorted(bounds.items())},
-                                                         "over": over.get((name, proto), []), "rounds": seen}
+                                                         "over": state.over.get((name, proto), []), "rounds": seen}
         out.stats = {**computed_counts(results), "tasks": counts, "task_seconds": dict(session.task_seconds)}
         out.stats["runs_cached"] = max(0, sum(len(t.configs) for t in statics + ghosts + sweeps + sharpens)
                                        - out.stats["runs_computed"])
@@ -315,74 +359,21 @@ class Study:
             if scene.name in plan.agreements:
                 out.agreements[scene.name] = results[plan.agreements[scene.name]]["data"]
         for t in statics:
-            full = self._with_drift(self._result(t, results, costs))
+            full = with_drift(self._result(t, results, costs), self.drifts)
             out.statics.append(full)
             for label, n in self.profile.static_views.items():
                 out.views.setdefault(label, []).append(view(full, label, n))
         for t in ghosts:
-            out.ghosts.setdefault(t.protocol.name, []).append(self._with_drift(self._result(t, results, costs)))
-        out.sweeps = [self._with_drift(self._result(t, results, costs)) for t in sweeps]
+            out.ghosts.setdefault(t.protocol.name, []).append(with_drift(self._result(t, results, costs), self.drifts))
+        out.sweeps = [with_drift(self._result(t, results, costs), self.drifts) for t in sweeps]
         out.sharpen_sweeps = [self._result(t, results, {}) for t in sharpens]
         return out
 
-    def _with_drift(self, res: TestResult) -> TestResult:
-        """A figure's stated uncertainty: its halves' plus its change from the coarser bound."""
-        change = self.drifts.get((res.scene, res.test), {})
-        if not change:
-            return res
-        res.uncertainty = {label: {f: {m: u + change.get((res.test, label, f, m), 0.0) if u is not None else None
-                                       for m, u in us.items()} for f, us in per.items()}
-                           for label, per in res.uncertainty.items()}
-        res.temporal_u = {label: u + change.get((res.test, label, None, "temporal"), 0.0) if u is not None else None
-                          for label, u in res.temporal_u.items()}
-        return res
-
-    def _records(self, test):
-        from study.engine.store import Store
-        store = Store(self.cache.root)
-        return {c.label: store.done(Path(test.run_folders[c.label]), test.run_keys[c.label]) for c in test.configs}
+    def _records(self, test) -> dict:
+        return run_records(self.cache.root, test)
 
     def _result(self, test, results: dict, costs: dict) -> TestResult:
-        recs = self._records(test)
-        res = TestResult(test.scene, test.protocol.name, [], {}, {}, width=test.width, height=test.height,
-                         kind=test.protocol.kind, reference_bound_lsb=test.ref_settings.get("se_bound_lsb", SE_BOUND_LSB),
-                         reference_bounds_lsb={t: s.get("se_bound_lsb", SE_BOUND_LSB) for t, s in test.ref_settings_at.items()},
-                         reference_keys={t: k for t, k in test.reference_tasks.items()})
-        frames = set()
-        for c in test.configs:
-            m = results[test.metrics_keys[c.label]]
-            if m["computed"]:
-                res.recomputed.append(c.label)
-            per = {int(f): v for f, v in m["data"]["per_frame"].items()}
-            res.per_frame[c.label] = per
-            res.uncertainty[c.label] = {int(f): v for f, v in m["data"]["uncertainty"].items()}
-            res.temporal_u[c.label] = m["data"].get("temporal_u")
-            frames |= set(per)
-            t = m["data"].get("temporal")
-            res.temporal[c.label] = math.nan if t is None else t
-            rec = recs[c.label] or {}
-            if rec.get("stats"):
-                res.stats[c.label] = {int(f): v for f, v in rec["stats"].items()}
-            cost = costs.get((test.scene, c.label), {})
-            res.costs[c.label] = cost
-            res.ms[c.label] = cost.get("total_ms", math.nan)
-            res.artefacts[c.label] = {"folder": test.run_folders[c.label], "run_key": test.run_keys[c.label],
-                                      "metrics_key": test.metrics_keys[c.label],
-                                      "metrics_folder": test.metrics_folders[c.label],
-                                      "output_space": (rec or {}).get("output_space", "linear"),
-                                      "technique": c.name, "overrides": list(c.overrides),
-                                      "maps_for": test.maps_for[c.label]}
-        for label, vkey in test.video_keys.items():
-            if vkey in results:
-                res.jod[label] = {k: v for k, v in results[vkey]["data"]["jod"].items()}
-                res.jod_u[label] = dict(results[vkey]["data"]["jod_u"])
-                res.video = {k: results[vkey]["data"][k] for k in ("metric", "display", "fps")}
-                res.artefacts[label]["video_key"] = vkey
-                res.artefacts[label]["video_folder"] = str(self.cache.root / "video" / test.scene / vkey)
-        res.frames = sorted(frames)
-        if test.protocol.kind == "static":
-            res.checkpoints = res.per_frame
-        return res
+        return test_result(self.cache.root, test, results, costs)
 
     # -- costs: serial, after everything else ---------------------------------------------------------
     def _costs(self, scenes, statics, results) -> dict:
@@ -391,10 +382,3 @@ class Study:
 
 
 __all__ = ["Study", "StudyResults", "StudyStopped", "TestResult", "is_animated"]
-
-
-def _seeded_early(tests, seeded: set, ghost: set) -> frozenset:
-    """The tests whose agreement and video a seeded study plans in its first round: each started at
-    an earlier study's bound, with every ghosting protocol of its scene (they share references)."""
-    unseeded = {s for s, p in tests if p in ghost and (s, p) not in seeded}
-    return frozenset(k for k in tests if k in seeded and not (k[1] in ghost and k[0] in unseeded))

@@ -22,6 +22,7 @@ import sys
 import threading
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -125,6 +126,17 @@ _HELD: dict[tuple[str, str], int] = {}
 _HELD_GUARD = threading.Lock()
 
 
+MISSING, OTHER_KEY, PRUNED, TAMPERED, COMPLETE = "missing", "other key", "pruned", "tampered", "complete"
+
+
+class Checked(NamedTuple):
+    """What Store.check found in a folder: its status, the done record when COMPLETE, and what
+    did not match when TAMPERED."""
+    status: str
+    record: dict | None = None
+    problem: str | None = None
+
+
 class Store:
     """Artefacts under `root`: folders of files with a sealed done record, and sealed JSON records."""
 
@@ -147,14 +159,17 @@ class Store:
         """Files one at a time, then the done record (for artefacts too large to hold at once)."""
         return FolderWriter(folder)
 
-    def done(self, folder: Path, key: str, verify_files: bool = False, whole: bool = False) -> dict | None:
-        """The done record if the folder is complete under `key` (and, if asked, every file intact).
-        `whole`: only if no file was pruned (the caller needs every frame, not the kept ones)."""
+    def check(self, folder: Path, key: str, verify_files: bool = False, whole: bool = False) -> "Checked":
+        """What the folder holds under `key`, changing nothing: a Checked whose status is COMPLETE
+        (with its done record), MISSING (no done record), OTHER_KEY (one of another key), PRUNED
+        (`whole` asked for every frame and some were dropped) or TAMPERED (the record's seal, or with
+        `verify_files` a file it lists, does not match: `problem` says which). Removing a tampered
+        record is the caller's decision (`invalidate`)."""
         path = folder / "done.json"
         try:
             st = path.stat()
         except FileNotFoundError:
-            return None
+            return Checked(MISSING)
         state = _state(st)
         try:
             got = _RECORDS.get(str(path))
@@ -165,15 +180,22 @@ class Store:
                 if _settled(st):
                     _RECORDS[str(path)] = (state, record)
             if record.get("key") != key:
-                return None
+                return Checked(OTHER_KEY)
             if verify_files:            # the kept files too: a tampered one is reported either way
                 for name in record["files"]:
                     self.verify(folder / name, record)
-            return None if whole and record.get("pruned") else record
         except (TamperError, ValueError, KeyError, OSError) as exc:
-            self.log(f"store: {exc}; re-making {folder}")
-            path.unlink(missing_ok=True)
-            return None
+            return Checked(TAMPERED, problem=str(exc))
+        return Checked(PRUNED) if whole and record.get("pruned") else Checked(COMPLETE, record)
+
+    def done(self, folder: Path, key: str, verify_files: bool = False, whole: bool = False) -> dict | None:
+        """The done record if the folder is complete under `key` (and, if asked, every file intact),
+        else None; a tampered one is logged, and left for the caller (`check`, `invalidate`).
+        `whole`: only if no file was pruned (the caller needs every frame, not the kept ones)."""
+        got = self.check(folder, key, verify_files, whole)
+        if got.status == TAMPERED:
+            self.log(f"store: {got.problem}; re-making {folder}")
+        return got.record
 
     def prune(self, folder: Path, key: str, keep: set) -> int:
         """Drop the files of a done folder not in `keep` (names): the record first lists only the
@@ -252,6 +274,8 @@ class Store:
         return ch
 
     def invalidate(self, folder: Path, reason: str) -> None:
+        """Remove a folder's done record (one found tampered: `reason`), so that every later check
+        finds it missing and its artefact is made again."""
         self.log(f"store: {reason}; re-making {folder}")
         (folder / "done.json").unlink(missing_ok=True)
 
@@ -265,9 +289,8 @@ class Store:
         try:
             data = unseal(json.loads(path.read_text()), path)
             return data if data.get("key") == key else None
-        except (TamperError, ValueError) as exc:
+        except (TamperError, ValueError) as exc:     # left in place: save_record replaces it
             self.log(f"store: {exc}; re-making it")
-            path.unlink(missing_ok=True)
             return None
 
     def save_record(self, path: Path, key: str, data: dict) -> dict:
