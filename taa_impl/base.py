@@ -245,16 +245,18 @@ class Technique:
             turn; its output is the last step's.
         """
         frame = as_frame(frame, fields)
-        if not frame.samples:
+        if frame.samples is None:
             return self._frame(frame)
         subs = tuple(frame.samples)
+        if not subs:
+            raise ValueError(f"{self.name} needs at least one sub-frame in samples")
         shapes = {np.shape(s["color"])[:2] for s in subs}
         if len(shapes) != 1:
             raise ValueError(f"sub-frames of one output must share a resolution, got {sorted(shapes)}")
         self.reset()
         total, out = 0, None
         for bufs in subs:
-            out = self._frame(dataclasses.replace(frame, buffers=bufs, samples=(), reset=False))
+            out = self._frame(dataclasses.replace(frame, buffers=bufs, samples=None, reset=False))
             total += self.last_nonfinite_count
         self.last_nonfinite_count = total
         return out

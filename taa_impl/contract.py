@@ -129,7 +129,7 @@ class Frame:
         Current and previous cameras at the output size; required when the contract says so.
     output_size : (int, int), optional
         (width, height) of the output; required by an upscaler.
-    samples : tuple of mappings
+    samples : sequence of mappings, optional
         'supersample': every sub-frame's buffers of this output (`buffers` unused).
     supersampled : ndarray, optional
         (H, W, 3) mean of `extra_samples` jittered samples where `mask` is set (sparse supersampling).
@@ -143,7 +143,7 @@ class Frame:
     display: Any = None
     cameras: tuple | None = None
     output_size: tuple | None = None
-    samples: tuple = ()
+    samples: tuple | None = None
     supersampled: Any = None
     mask: Any = None
 

@@ -58,7 +58,7 @@ class Accumulation(Technique):
 
     @classmethod
     def inputs_for(cls, params=None) -> Inputs:
-        n = (params or cls.Params()).samples
+        n = (params if params is not None else cls.Params()).samples
         return dataclasses.replace(cls.contract, subframes=n)
 
     def _clear_history(self) -> None:
@@ -71,15 +71,6 @@ class Accumulation(Technique):
         dr.eval(self._sum)
         self.count += 1
         return mi.Color3f(self._sum / float(self.count))
-
-    def process_samples(self, frames, *, far: float = 1.0) -> np.ndarray:
-        """The (H, W, 3) float32 mean of the frames' colours: `process(Frame(samples=frames, far=far))`.
-        `far` only matters for repairing a non-finite depth, which is not read;
-        `last_nonfinite_count` is the total of repaired pixels over all the frames."""
-        frames = tuple(frames)
-        if not frames:
-            raise ValueError("process_samples needs at least one frame")
-        return self.process(Frame(samples=frames, far=far))
 
     @property
     def mean(self) -> np.ndarray | None:

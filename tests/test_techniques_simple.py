@@ -78,7 +78,7 @@ def test_accumulation_of_constant_frames_is_the_constant():
     c[:] = (0.1234567, 3.3333333, 1e4 / 3)
     t = taa_impl.make("accumulation", samples=128)
     frames = [{"color": c.copy()} for _ in range(128)]
-    out = t.process_samples(frames)
+    out = t.process(samples=frames, far=1.0)
     assert np.array_equal(out, c) and t.count == 128
     # one at a time: every running mean is the constant too
     t.reset()
@@ -92,7 +92,7 @@ def test_accumulation_equals_numpy_mean():
     cols = rng.uniform(0, 2, (n, 6, 8, 3)).astype(F)
     cols[:, 0, 0] *= 1e3                                 # HDR
     t = taa_impl.make("accumulation", samples=n)
-    out = t.process_samples([{"color": c} for c in cols])
+    out = t.process(samples=[{"color": c} for c in cols], far=1.0)
     np.testing.assert_allclose(out, cols.astype(np.float64).mean(axis=0), rtol=1e-6, atol=1e-6)
     np.testing.assert_array_equal(t.mean, out)
     # the running mean after k frames is the mean of the first k
@@ -101,8 +101,8 @@ def test_accumulation_equals_numpy_mean():
     for k in range(1, 20):
         out = call(t, {"color": cols[k - 1]})
         np.testing.assert_allclose(out, cols[:k].astype(np.float64).mean(axis=0), rtol=1e-6, atol=1e-6)
-    # process_samples restarts the mean (it does not add to the running one)
-    out = t.process_samples([{"color": c} for c in cols[:4]])
+    # a frame of samples restarts the mean (it does not add to the running one)
+    out = t.process(samples=[{"color": c} for c in cols[:4]], far=1.0)
     np.testing.assert_allclose(out, cols[:4].astype(np.float64).mean(axis=0), rtol=1e-6, atol=1e-6)
     assert t.count == 4
 
@@ -117,7 +117,7 @@ def test_accumulation_converges_to_the_pixel_area_mean_of_an_edge():
         xs = np.arange(5) + 0.5 + ox
         col = np.where(xs < 2.3, 1.0, 0.0).astype(F)
         frames.append({"color": np.broadcast_to(col[None, :, None], (2, 5, 3)).copy()})
-    out = taa_impl.make("accumulation", samples=n).process_samples(frames)
+    out = taa_impl.make("accumulation", samples=n).process(samples=frames, far=1.0)
     np.testing.assert_array_equal(out[:, :2], 1.0)
     np.testing.assert_array_equal(out[:, 3:], 0.0)
     assert abs(out[0, 2, 0] - 0.3) <= 1 / n
@@ -126,13 +126,13 @@ def test_accumulation_converges_to_the_pixel_area_mean_of_an_edge():
 def test_accumulation_validates_and_counts_nonfinite():
     t = taa_impl.make("accumulation")
     with pytest.raises(ValueError):
-        t.process_samples([])
+        t.process(samples=[], far=1.0)
     with pytest.raises(ValueError):
-        t.process_samples([{"color": np.zeros((4, 4, 3), F)}, {"color": np.zeros((4, 5, 3), F)}])
+        t.process(samples=[{"color": np.zeros((4, 4, 3), F)}, {"color": np.zeros((4, 5, 3), F)}], far=1.0)
     frames = [{"color": np.ones((4, 4, 3), F)} for _ in range(4)]
     frames[1]["color"][2, 2, 0] = np.inf
     frames[3]["color"][0, 1, 2] = np.nan
-    out = t.process_samples(frames)
+    out = t.process(samples=frames, far=1.0)
     assert np.all(np.isfinite(out)) and t.last_nonfinite_count == 2
     np.testing.assert_array_equal(out, 1.0)   # each repaired from its (all-1) neighbours
 

@@ -9,7 +9,7 @@ samples its mask asked for in the run (measured there). So per scene we time, on
                 render_scale x the output: render_scale^2 samples per output pixel);
   extra_ms      for sparse supersampling, its supersample call on the mask of a converged frame,
                 scaled to the mean extra samples the run recorded;
-  resolve_ms    the technique's own work per frame (process / process_samples), warm;
+  resolve_ms    the technique's own work per frame (process), warm;
   total_ms      raster_ms x subframes + extra_ms + resolve_ms.
 All are medians of repeated warm calls (the first calls compile kernels).
 """
@@ -90,7 +90,7 @@ def measure(scene, width: int, height: int, configs: list, displays: dict, extra
                 jits = step_jitters(first, "supersample", inp.subframes)
                 base = [src.frame(0, j, 0) for j in jits[:DISTINCT_SUBFRAMES]]
                 subs = [{k: base[i % len(base)][k].copy() for k in tech.needs} for i in range(len(jits))]
-                resolve_ms = median_ms(lambda: tech.process_samples(subs))
+                resolve_ms = median_ms(lambda: tech.process(samples=subs, far=scene.desc.camera.far))
                 del subs, base
             else:
                 drive(tech, first, src, scene, width, height, displays.get(0))   # fills the history, as the kernels expect

@@ -121,7 +121,7 @@ def drive(tech, step: Step, src: FrameSource, scene: ResolvedScene, width: int, 
     jitters = step_jitters(step, inp.sampling, inp.subframes, period=inp.jitter_period)
     frames = [src.frame(step.t, j, step.prev_t) for j in jitters]
     one = inp.sampling != "supersample"      # else: all sub-frames of one output at once
-    frame = Frame(buffers=frames[0] if one else {}, samples=() if one else tuple(frames),
+    frame = Frame(buffers=frames[0] if one else {}, samples=None if one else tuple(frames),
                   jitter=jitters[0] if one else (0.0, 0.0), far=scene.desc.camera.far, reset=step.reset,
                   display=display if inp.display else None, cameras=cams,
                   output_size=(width, height) if inp.upsamples else None)
