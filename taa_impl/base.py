@@ -191,7 +191,10 @@ class Technique:
             for a in _LEGACY:
                 if a in cls.__dict__:
                     delattr(cls, a)
-            cls.contract = dataclasses.replace(cls.contract, **legacy)
+            try:
+                cls.contract = dataclasses.replace(cls.contract, **legacy)
+            except ValueError as exc:
+                raise ValueError(f"technique class {cls.__name__}: {exc}") from None
         step = cls.__dict__.get("_step")
         if step is not None and len(inspect.signature(step).parameters) == 5:
             def _step(self, b, frame, _legacy=step):    # the older hook _step(b, width, height, far)
@@ -206,13 +209,18 @@ class Technique:
 
     def __init__(self, params=None, *, feedback: str | None = None, **overrides):
         self.params = build_params(self.Params, params, feedback, **overrides)
-        self.inputs: Inputs = type(self).inputs_for(self.params)
+        self._inputs = type(self).inputs_for(self.params)
         self.last_nonfinite_count = 0          # non-finite input pixels repaired in the last frame
         self.last_nonfinite: dict[str, int] = {}
         self.last_jitter: tuple[float, float] | None = None
         self.last_stats: dict = {}             # the last frame's counters, recorded by the driver
         self._shape: tuple[int, int] | None = None
         self.reset()
+
+    @property
+    def inputs(self) -> Inputs:
+        """What a driver must hand this technique (its parameters' `inputs_for`)."""
+        return self._inputs
 
     def __repr__(self):
         return f"{type(self).__name__}({self.params})"
@@ -284,6 +292,8 @@ class Technique:
         return frame.buffers
 
     def _step(self, b: dict, frame: Frame):
+        """One frame: `b` the validated buffers as flat Dr.Jit arrays (y * W + x), `frame` the
+        validated Frame. Returns the output colour (mi.Color3f at the output size); updates the history."""
         raise NotImplementedError
 
 

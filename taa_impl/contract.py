@@ -165,11 +165,12 @@ def as_frame(frame=None, fields: dict | None = None) -> Frame:
     return Frame(**fields) if frame is None else Frame(buffers=frame, **fields)
 
 
-def _check_camera(cam, which: str, size: tuple[int, int]):
+def check_camera(cam, which: str, size: tuple[int, int] | None = None) -> None:
+    """A scenes.camera.CameraState (`which`: its name in the error), of `size` (width, height) if given."""
     for attr in ("to_world", "yfov_deg", "width", "height"):
         if not hasattr(cam, attr):
             raise TypeError(f"{which} camera must be a scenes.camera.CameraState (no {attr!r})")
-    if (cam.width, cam.height) != size:
+    if size is not None and (cam.width, cam.height) != size:
         raise ValueError(f"{which} camera is {cam.width}x{cam.height}, frame is {size[0]}x{size[1]}")
 
 
@@ -207,7 +208,7 @@ def checked(frame: Frame, inputs: Inputs, name: str, *, final: bool = True) -> t
             raise ValueError("cameras must be (current, previous)")
         cameras = tuple(frame.cameras)
         for cam, which in zip(cameras, ("current", "previous")):
-            _check_camera(cam, which, out)
+            check_camera(cam, which, out)
     ss = mask = None
     if inputs.masks and final:
         if frame.supersampled is None:
@@ -226,5 +227,5 @@ def checked(frame: Frame, inputs: Inputs, name: str, *, final: bool = True) -> t
                                cameras=cameras, output_size=out, supersampled=ss, mask=mask), nonfinite
 
 
-__all__ = ["Inputs", "Frame", "as_frame", "checked", "render_size", "check_scale", "SAMPLING_MODES",
+__all__ = ["Inputs", "Frame", "as_frame", "checked", "check_camera", "render_size", "check_scale", "SAMPLING_MODES",
            "OUTPUT_SPACES"]

@@ -69,6 +69,7 @@ from backend import array, dr, mi
 from . import kernels as K
 from .base import Frame, Inputs, check_sharpen, sharpen_weight
 from .baseline import TAATechnique
+from .contract import check_camera
 
 CLAMPS = ("current", "history", "none")
 MOTION_SOURCES = ("camera", "buffer")
@@ -98,12 +99,6 @@ class FerrandoParams:
 
 
 # ----------------------------------------------------------------------------- camera-only motion
-def _camera_check(cam, name: str):
-    for attr in ("to_world", "yfov_deg", "width", "height"):
-        if not hasattr(cam, attr):
-            raise TypeError(f"{name} camera must be a scenes.camera.CameraState (no {attr!r})")
-
-
 def _reprojection(current, previous):
     """(G, b, tan_half of previous): the previous camera-space point of pixel position (X, Y) at
     depth z of the current camera is q = b + z * G (X, Y, 1) (float64 constants)."""
@@ -144,8 +139,8 @@ def camera_motion(grid: K.Grid, depth, current, previous):
 
 def motion_from_depth(depth: np.ndarray, current, previous) -> np.ndarray:
     """NumPy convenience: (H, W, 2) float32 camera-only motion for an (H, W) depth buffer."""
-    _camera_check(current, "current")
-    _camera_check(previous, "previous")
+    check_camera(current, "current")
+    check_camera(previous, "previous")
     h, w = np.shape(depth)
     grid = K.Grid(w, h)
     v = camera_motion(grid, array(mi.Float, depth, np.float32), current, previous)

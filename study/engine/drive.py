@@ -173,7 +173,7 @@ def run_schedule(scene: ResolvedScene, width: int, height: int, schedule: list[S
                     raise
                 except Exception as exc:      # the technique's own code (a user's file): named, no traceback
                     raise TechniqueError(_failure(scene.name, label, tech, step, exc)) from None
-                out[label]["nonfinite"] += int(getattr(tech, "last_nonfinite_count", 0))
+                out[label]["nonfinite"] += int(tech.last_nonfinite_count)
                 shown = step.frame in judged[label] and step.keep
                 img = checked_output(img, scene.name, label, tech, step, width, height, finite=shown)
                 if shown:
