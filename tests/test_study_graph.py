@@ -148,14 +148,15 @@ def test_the_default_executor_shares_the_cores_and_runs_a_small_plan_in_process(
     assert e.value.code == 2
 
     # a plan under AUTO_MIN_TASKS tasks starts no cluster
+    from functools import partial
     from types import SimpleNamespace as NS
-    tasks = {f"k{i}": NS(fn=pow, args=(i, 2), deps=(), kind="x") for i in range(E.AUTO_MIN_TASKS - 1)}
+    tasks = {f"k{i}": NS(spec=partial(pow, i, 2), deps=(), kind="x") for i in range(E.AUTO_MIN_TASKS - 1)}
     with E.Session(E.Executor("auto", workers=2)) as s:
         got = s.execute(NS(tasks=tasks, cached={"c": 7}), progress=False)
         assert s._client is None
     assert got == {"c": 7, **{f"k{i}": i * i for i in range(E.AUTO_MIN_TASKS - 1)}}
     # nor do references whose file is there (cache hits: an A/B after a study plans dozens)
-    hits = {f"r{i}": NS(fn=pow, args=(i, 3), deps=(), kind="reference", likely_cached=True) for i in range(20)}
+    hits = {f"r{i}": NS(spec=partial(pow, i, 3), deps=(), kind="reference", likely_cached=True) for i in range(20)}
     with E.Session(E.Executor("auto", workers=2)) as s:
         got = s.execute(NS(tasks={**tasks, **hits}, cached={}), progress=False)
         assert s._client is None and got["r2"] == 8
@@ -166,12 +167,13 @@ def test_an_auto_plan_runs_on_a_cluster_whose_workers_have_the_cores_shared_out(
     Dr.Jit pool has the threads the executor gave it (a worker plugin, set before any task)."""
     code = """
 import json, sys
+from functools import partial
 from types import SimpleNamespace as NS
 import drjit as dr
 from study.engine import execute as E
 E.cores = lambda: 2
 # a builtin as the task (a nanobind function has no deterministic Dask token)
-plan = lambda tag: NS(tasks={f"{tag}{i}": NS(fn=eval, args=("__import__('drjit').thread_count()",), deps=(), kind="x") for i in range(E.AUTO_MIN_TASKS)}, cached={})
+plan = lambda tag: NS(tasks={f"{tag}{i}": NS(spec=partial(eval, "__import__('drjit').thread_count()"), deps=(), kind="x") for i in range(E.AUTO_MIN_TASKS)}, cached={})
 logged = []
 with E.Session(E.Executor("auto", workers=2), log=logged.append) as s:
     a = s.execute(plan("a"), progress=False)
