@@ -30,6 +30,7 @@ def test_decide_returns_a_new_state_and_leaves_its_arguments_untouched():
     assert d.before[G][0] == {10: 1.0, 11: 8.0} and before[G][0] == {10: 8.0, 11: 8.0}
     assert d.drifts[G][f0] == 0.0 and d.drifts[G][tr] == 1e-4 and drifts[G] == {tr: 1e-4}   # tr's kept
     assert [x[:4] for x in d.over[G]] == [f0] and over[G] == [("old",)]
+    assert d.over[G][0].metric == "flip_hdr" and d.over[G][0].tolerance < d.over[G][0].uncertainty
     assert all(type(f) is FigureKey for f in d.drifts[G])
 
 
@@ -45,6 +46,8 @@ def test_keys_are_named_records_and_a_decisions_record_restores_them():
     got, tried, over, drifts = from_record(rec)
     assert got == {A: 2, i: 4} and tried == {A: [8.0, 2.0]}
     assert {type(k) for k in got} == {TestKey, InstantKey} and type(next(iter(drifts[A]))) is FigureKey
+    over = to_record({A: 0}, {A: [8.0]}, {A: [("static", "X", 8, "psnr", 0.2, 0.1)]}, {})
+    assert from_record(over)[2][A][0].uncertainty == 0.2                 # an Over, by name
 
 
 def _planned(tmp_path):

@@ -43,7 +43,7 @@ import math
 from typing import NamedTuple
 
 from provenance import task_key
-from study.engine.rounds import FigureKey, InstantKey, TestKey, instant_levels
+from study.engine.rounds import FigureKey, InstantKey, Over, TestKey, instant_levels
 from study.metrics import uncertainty as U
 
 
@@ -67,10 +67,10 @@ def printed(protocol, metric: str) -> bool:
     return protocol.figures is None or metric in protocol.figures or metric == "temporal"
 
 
-def over_tolerance(figures: dict, tolerances: dict) -> list[tuple]:
-    """(*key, uncertainty, tolerance) of every figure of a `figures_of` dict whose reference
-    uncertainty exceeds its tolerance, worst first."""
-    out = [(*k, u, tol) for k, (v, u) in figures.items()
+def over_tolerance(figures: dict, tolerances: dict) -> list[Over]:
+    """An Over (its key, uncertainty and tolerance) for every figure of a `figures_of` dict whose
+    reference uncertainty exceeds its tolerance, worst first."""
+    out = [Over(*k, u, tol) for k, (v, u) in figures.items()
            for tol in [U.excess(k[-1], v, u, tolerances)] if tol is not None]
     return sorted(out, key=lambda x: -(x[-2] / x[-1] if x[-1] else math.inf))
 
@@ -92,7 +92,7 @@ def drift(now: dict, before: dict, tolerances: dict, scale: float = 1.0) -> tupl
             change[k] = d
             tol = U.tolerance(k[-1], v, tolerances)
             if tol is not None and d > tol:
-                over.append((*k, d, tol))
+                over.append(Over(*k, d, tol))
     return change, over
 
 
@@ -216,7 +216,7 @@ def from_record(rec: dict) -> tuple[dict, dict, dict, dict]:
         k = TestKey(*t["test"])
         levels[k], tried[k] = int(t["level"]), list(t["tried"])
         levels.update({InstantKey(*k, i): int(n) for i, n in t.get("instants", [])})
-        over[k] = [tuple(x) for x in t["over"]]
+        over[k] = [Over(*x) for x in t["over"]]
         drifts[k] = {FigureKey(*d[:-1]): d[-1] for d in t["drift"]}
     return levels, tried, over, drifts
 

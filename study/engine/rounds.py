@@ -35,6 +35,17 @@ class FigureKey(NamedTuple):
     metric: str
 
 
+class Over(NamedTuple):
+    """A figure over its tolerance: its key's fields, its uncertainty (the drift included) and the
+    tolerance it exceeds."""
+    protocol: str
+    label: str
+    frame: int | None
+    metric: str
+    uncertainty: float
+    tolerance: float
+
+
 def instant_levels(levels: dict, test: tuple) -> dict:
     """scene time -> level of the test's instants refined alone (`levels`: TestKey / InstantKey -> level)."""
     return {k.t: n for k, n in levels.items() if isinstance(k, InstantKey) and k.test == test}
@@ -118,9 +129,9 @@ def log_judged(log, precision, judged, finer: dict, progress: Progress, rnd: Rou
                 first = "probe" if b == f"{precision.start_bound_lsb:g}" else "first bound (an earlier study's)"
                 log(f"precision: {name}: every figure within its tolerance at its {first} ({b} LSB): settled")
             continue
-        label, tech, f, m, u, tol = over[k][0]
+        w = over[k][0]
         log(f"precision: {name}: {len(over[k])} figures over their tolerance at {b} LSB, the worst "
-            f"{m} of {tech} ({label}, frame {f}) +-{u:.3g} > {tol:.3g}; "
+            f"{w.metric} of {w.label} ({w.protocol}, frame {w.frame}) +-{w.uncertainty:.3g} > {w.tolerance:.3g}; "
             + (nxt if k in finer else "the finest bound: reported"))
 
 
