@@ -8,7 +8,8 @@ A study is a list of tests (scene, protocol, techniques). For each the planner k
   video       (one technique's run, ColorVideoVDP; a test's by one task, in the study's last round)
                                                 -- study.engine.video_task
 from the keys of their inputs (provenance.task_key), and leaves out every task whose artefact is
-already complete in the cache. Where the tasks run is study.engine.execute's business; the tables
+already complete in the cache. Each planned Task carries its inputs as a frozen spec of its kind
+(study.engine.specs), read by name. Where the tasks run is study.engine.execute's business; the tables
 and figures made from their results are study.reporting's.
 """
 from __future__ import annotations

@@ -71,14 +71,14 @@ class Study:
         """A test's precision level, at instant t that instant's own. The ghosting protocols judge
         the same instants: one reference each, at the finest level any of them asks for. The static
         test keeps its own (its controls ask for finer bounds every round: see the README)."""
-        k = (name, protocol or self.profile.static.name)
+        k = TestKey(name, protocol or self.profile.static.name)
         base = self.levels.get(k, 0)
         if t is None:
             return base
         own = P.level_at(self.levels, k, t)
         ghosting = [p.name for p in self.profile.ghosting]
-        if k[1] in ghosting:
-            own = max([own] + [self.levels.get((name, p, t), 0) for p in ghosting])
+        if k.protocol in ghosting:
+            own = max([own] + [self.levels.get(InstantKey(name, p, t), 0) for p in ghosting])
         return max(base, own)
 
     def bound_of(self, name: str, protocol: str | None = None, t: int | None = None) -> float:
