@@ -9,6 +9,9 @@ Mitsuba's multi-bounce path tracer as its reference (references/mitsuba_scene.py
 frames are shaded as direct_shadows, and the gap between the two is reported, not hidden.
 Directional lights give E = intensity; point lights E = intensity / d^2. Surfaces are two-sided:
 normals are turned to face the viewer. Textures use nearest-texel lookup with wrap-around.
+Materials beyond Lambert (the glTF metallic-roughness model, normal, occlusion and emissive maps)
+are shaded by shading/material.py, traced only in scenes that have them, so a Lambert scene's
+kernel is the one above.
 """
 from __future__ import annotations
 
