@@ -4,8 +4,8 @@ An object with `mesh = { kind = "gltf", path = "...", camera = true }` becomes o
 mesh primitive of the file's default scene, each with its node's world matrix baked into its
 vertices and its own material: the metallic-roughness model (shading/brdf.py) with baseColorFactor,
 the sRGB baseColorTexture, metallicFactor, roughnessFactor, metallicRoughnessTexture (G roughness,
-B metallic), normalTexture (+ scale; tangents generated per triangle, an asset's TANGENT is not
-read), emissiveFactor (x KHR_materials_emissive_strength) and emissiveTexture, occlusionTexture
+B metallic), normalTexture (+ scale; on the primitive's TANGENTs where it has them, else tangents
+generated per triangle from the UVs), emissiveFactor (x KHR_materials_emissive_strength) and emissiveTexture, occlusionTexture
 (+ strength; scales the ambient term), all sampled on the first texture's TEXCOORD_n, and alphaMode
 MASK / alphaCutoff as the cut-out. The object's own transform and motion
 apply on top, to the whole file. With `camera = true` the first perspective camera placed in the
@@ -262,6 +262,18 @@ def _unit_normals(n: np.ndarray) -> np.ndarray | None:
     return n / length
 
 
+def _tangents(tg: np.ndarray, world: np.ndarray) -> np.ndarray | None:
+    """TANGENT (xyz, w) under the node's world matrix: xyz transforms as a surface direction, and
+    w flips where the matrix mirrors (the bitangent w N x T must keep pointing along +v)."""
+    tg = tg.astype(np.float64)
+    xyz = tg[:, :3] @ world[:3, :3].T
+    length = np.linalg.norm(xyz, axis=1, keepdims=True)
+    if not np.all(np.isfinite(tg)) or not np.all(length > 0):
+        return None
+    w = np.where(tg[:, 3:] < 0, -1.0, 1.0) * np.sign(np.linalg.det(world[:3, :3]))
+    return np.concatenate([xyz / length, w], 1)
+
+
 def read(obj: SceneObject, base_dir: str | None, where: str) -> Expanded:
     """The scene objects, meshes and (if asked for) the camera of one glTF object."""
     spec = obj.mesh
@@ -311,8 +323,6 @@ def _read(obj: SceneObject, full: str, where: str) -> Expanded:
                 unsupported.add("morph targets")
             if any(k.startswith("COLOR_") for k in attr):
                 unsupported.add("COLOR_0 vertex colours")
-            if "TANGENT" in attr:
-                unsupported.add("TANGENT (tangents generated per triangle from the UVs instead)")
             if "POSITION" not in attr:
                 raise _Malformed(f"{pwhere}.attributes", "has no POSITION")
             pos = c.accessor(attr["POSITION"], f"{pwhere}.attributes.POSITION", (3,)).astype(np.float64)
@@ -339,12 +349,17 @@ def _read(obj: SceneObject, full: str, where: str) -> Expanded:
                 normals = _unit_normals(n @ np.linalg.inv(world[:3, :3]))   # inverse transpose
                 if normals is None:
                     unsupported.add("zero-length NORMALs (those primitives are flat shaded)")
+            tangents = None
+            if "TANGENT" in attr and mat.normal_map is not None:
+                tangents = _tangents(c.accessor(attr["TANGENT"], f"{pwhere}.attributes.TANGENT", (4,)), world)
+                if tangents is None:
+                    unsupported.add("zero-length or non-finite TANGENTs (those primitives' tangents generated)")
             if len(pos) and (faces.max() >= len(pos)):
                 raise _Malformed(f"{pwhere}.indices", f"index {int(faces.max())} >= {len(pos)} vertices")
             if det < 0:   # a mirroring transform reverses the winding
                 faces = faces[:, ::-1]
             verts = pos @ world[:3, :3].T + world[:3, 3]
-            for a, what in ((uv, "TEXCOORD"), (normals, "NORMAL")):
+            for a, what in ((uv, "TEXCOORD"), (normals, "NORMAL"), (tangents, "TANGENT")):
                 if a is not None and len(a) != len(pos):
                     raise _Malformed(f"{pwhere}.attributes.{what}", f"{len(a)} values for {len(pos)} vertices")
             # Real assets carry zero-area triangles (strip restarts, collapsed detail): they cover
@@ -356,7 +371,7 @@ def _read(obj: SceneObject, full: str, where: str) -> Expanded:
                 if len(faces) == 0:
                     continue
             name = f"{label}.{pi}"
-            m = MeshData(verts, np.ascontiguousarray(faces, np.int64), uv, normals)
+            m = MeshData(verts, np.ascontiguousarray(faces, np.int64), uv, normals, tangents)
             m.validate(f"{where} ({name}, {pwhere})")
             out.meshes.append(m)
             out.objects.append(SceneObject(name=name, mesh=MeshSpec(kind="arrays", vertices=verts, faces=m.faces,

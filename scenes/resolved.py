@@ -232,6 +232,16 @@ class ResolvedScene:
         w = n @ np.linalg.inv(self.object_pose(i, t)[:3, :3])   # inverse transpose, row vectors
         return w / np.linalg.norm(w, axis=1, keepdims=True)
 
+    def world_tangents(self, i: int, t: int) -> np.ndarray | None:
+        """(V, 4): the mesh's tangents under the pose at t, w flipped where the pose mirrors."""
+        tg = self.meshes[i].tangents
+        if tg is None:
+            return None
+        m = self.object_pose(i, t)[:3, :3]
+        xyz = tg[:, :3] @ m.T
+        xyz /= np.linalg.norm(xyz, axis=1, keepdims=True)
+        return np.concatenate([xyz, tg[:, 3:] * np.sign(np.linalg.det(m))], 1)
+
     def is_static(self, i: int) -> bool:
         mo = self.desc.objects[i].motion
         return not any(mo.velocity) and not mo.spin_deg
@@ -263,6 +273,8 @@ class ResolvedScene:
         for arrays in (self.meshes, self.textures, self.alphas):
             for a in arrays:
                 parts = (a.vertices, a.faces, a.uvs, a.normals) if isinstance(a, MeshData) else (a,)
+                if isinstance(a, MeshData) and a.tangents is not None:   # absent: hashes as before
+                    parts += (a.tangents,)
                 for p in parts:
                     if p is not None and self.asset_digests and id(p) in seen:
                         # A glTF material's texture, shared by its primitives, is hashed once

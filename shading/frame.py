@@ -57,6 +57,9 @@ class SurfaceMaps:
     has_normal: bool
     tangents: mi.Float        # per global face: world dP/du (xyz) and the sign of the uv frame
     face_base: mi.UInt32      # per object id: its first global face
+    has_vtan: bool            # some normal-mapped mesh brings its own tangents (glTF TANGENT)
+    obj_vtan: mi.Bool         # per object id: interpolate vtangents instead of the face's tangent
+    vtangents: mi.Float       # per global vertex: world tangent xyz and w (zero where none)
     emit_tex: mi.UInt32
     emit_data: mi.Float
     has_emit_tex: bool
@@ -104,7 +107,13 @@ def _surface_maps(scene: ResolvedScene, t: int, face_offset: np.ndarray) -> Surf
     if has_normal:
         tangents = np.concatenate([face_tangents(scene.world_vertices(i, t), mesh.faces, mesh.uvs)
                                    for i, mesh in enumerate(scene.meshes)])
+    own = [m.normal_map is not None and mesh.tangents is not None for m, mesh in zip(mats, scene.meshes)]
+    vtan = np.zeros((1, 4))
+    if any(own):
+        vtan = np.concatenate([scene.world_tangents(i, t) if own[i] else np.zeros((len(mesh.vertices), 4))
+                               for i, mesh in enumerate(scene.meshes)])
     return SurfaceMaps(
+        has_vtan=any(own), obj_vtan=mi.Bool([False] + own), vtangents=mi.Float(vtan.astype(np.float32).ravel()),
         gltf_model=mi.Bool([False] + [m.is_gltf_model for m in mats]),
         metallic=mi.Float([0.0] + [float(m.metallic or 0.0) for m in mats]),
         roughness=mi.Float([1.0] + [1.0 if m.roughness is None else float(m.roughness) for m in mats]),

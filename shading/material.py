@@ -5,8 +5,9 @@ Normal maps are in tangent space. The tangent frame is generated per triangle fr
 derivatives (shading/frame.py, face_tangents): T = dP/du made orthogonal to the interpolated
 shading normal N (Gram-Schmidt), B = w N x T with w the sign of the triangle's UV orientation, and
 the normal is n = normalize(T x + B y + N z) for the texel's (2 c - 1) (x, y scaled by the
-material's normal_scale). Towards a back face the frame turns with the normal, as the Khronos sample
-viewer does. An asset's own TANGENT attribute is not read (the generated frame is used instead).
+material's normal_scale). A mesh that brings its own tangents (glTF TANGENT) uses them instead,
+interpolated over the triangle. Towards a back face the frame turns with the normal, as the Khronos
+sample viewer does.
 Occlusion scales the ambient term only; lights are not occluded by it."""
 from __future__ import annotations
 
@@ -26,16 +27,37 @@ def emission_scale(maps: SurfaceMaps, surf, hit) -> mi.Color3f:
     return dr.select(has, mi.Color3f(r, g, b), mi.Color3f(1.0))
 
 
+def _vertex_tangent(geo: FrameGeometry, maps: SurfaceMaps, face, p, active):
+    """The mesh's own tangent at p: its vertices' tangents interpolated with p's barycentric
+    coordinates in the triangle (recomputed from p, so the raster and the reference agree), and
+    the handedness of the triangle's first vertex."""
+    idx = [dr.gather(mi.UInt32, geo.faces, face * 3 + k, active) for k in range(3)]
+    v0, v1, v2 = (dr.gather(mi.Vector3f, geo.positions, i, active) for i in idx)
+    e1, e2, ep = v1 - v0, v2 - v0, p - v0
+    d00, d01, d11 = dr.dot(e1, e1), dr.dot(e1, e2), dr.dot(e2, e2)
+    d20, d21 = dr.dot(ep, e1), dr.dot(ep, e2)
+    inv = dr.rcp(d00 * d11 - d01 * d01)
+    b1 = (d11 * d20 - d01 * d21) * inv
+    b2 = (d00 * d21 - d01 * d20) * inv
+    tan = [[dr.gather(mi.Float, maps.vtangents, i * 4 + k, active) for k in range(4)] for i in idx]
+    t = sum((mi.Vector3f(*tv[:3]) * b for tv, b in zip(tan, (1.0 - b1 - b2, b1, b2))), mi.Vector3f(0.0))
+    return t, tan[0][3]
+
+
 def mapped_normal(geo: FrameGeometry, maps: SurfaceMaps, surf, n: mi.Vector3f, flip, hit) -> mi.Vector3f:
     """The shading normal n (already facing the viewer) bent by the object's normal map."""
     has, (x, y, z) = texel(maps.normal_tex, maps.normal_data, surf.obj, surf.uv, 3, hit)
     scale = dr.gather(mi.Float, maps.normal_scale, surf.obj, has)
     face = dr.gather(mi.UInt32, maps.face_base, surf.obj, has) + surf.prim
     tw = [dr.gather(mi.Float, maps.tangents, face * 4 + k, has) for k in range(4)]
-    t = mi.Vector3f(tw[0], tw[1], tw[2])
+    t, w = mi.Vector3f(tw[0], tw[1], tw[2]), tw[3]
+    if maps.has_vtan:
+        own = dr.gather(mi.Bool, maps.obj_vtan, surf.obj, has)
+        t_v, w_v = _vertex_tangent(geo, maps, face, surf.p, own)
+        t, w = dr.select(own, t_v, t), dr.select(own, w_v, w)
     t = dr.select(flip, -t, t)
     t = dr.normalize(t - n * dr.dot(n, t))
-    b = dr.cross(n, t) * dr.select(flip, -tw[3], tw[3])
+    b = dr.cross(n, t) * dr.select(flip, -w, w)
     bent = dr.normalize(t * ((2.0 * x - 1.0) * scale) + b * ((2.0 * y - 1.0) * scale) + n * (2.0 * z - 1.0))
     return dr.select(has, bent, n)
 

@@ -34,8 +34,12 @@ def _png(a):
     return "data:image/png;base64," + base64.b64encode(b.getvalue()).decode()
 
 
-def write_pbr_gltf(path):
-    """A 3 m x 3 m floor quad (y = 0) with normals and UVs, and one material using all five maps."""
+def write_pbr_gltf(path, tangent=None, normal_texel=None):
+    """A 3 m x 3 m floor quad (y = 0) with normals and UVs, and one material using all five maps;
+    `tangent`: a TANGENT (xyzw) for every vertex, `normal_texel`: a constant normal map."""
+    images = dict(IMAGES)
+    if normal_texel is not None:
+        images["normal"] = np.tile(np.asarray(normal_texel, np.uint8), (8, 8, 1))
     pos = np.array([[-1.5, 0, 1.5], [1.5, 0, 1.5], [1.5, 0, -1.5], [-1.5, 0, -1.5]], np.float32)
     nrm = np.tile(np.array([0, 1, 0], np.float32), (4, 1))
     uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32)
@@ -43,12 +47,16 @@ def write_pbr_gltf(path):
     data = pos.tobytes() + nrm.tobytes() + uv.tobytes() + idx.tobytes()
     views = [{"buffer": 0, "byteOffset": 0, "byteLength": 48}, {"buffer": 0, "byteOffset": 48, "byteLength": 48},
              {"buffer": 0, "byteOffset": 96, "byteLength": 32}, {"buffer": 0, "byteOffset": 128, "byteLength": 12}]
+    attributes = {"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2}
+    if tangent is not None:
+        views.append({"buffer": 0, "byteOffset": len(data), "byteLength": 64})
+        data += np.tile(np.asarray(tangent, np.float32), (4, 1)).tobytes()
+        attributes["TANGENT"] = 4
     tex = {k: {"index": i} for i, k in enumerate(ORDER)}
     doc = {
         "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
         "extensionsUsed": ["KHR_materials_emissive_strength"],
-        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2},
-                                    "indices": 3, "material": 0}]}],
+        "meshes": [{"primitives": [{"attributes": attributes, "indices": 3, "material": 0}]}],
         "materials": [{
             "pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.8, 0.7, 1.0], "baseColorTexture": tex["base"],
                                      "metallicFactor": 1.0, "roughnessFactor": 0.6,
@@ -58,13 +66,14 @@ def write_pbr_gltf(path):
             "occlusionTexture": {**tex["occlusion"], "strength": 0.8},
             "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 2.0}}}],
         "textures": [{"source": i} for i in range(len(ORDER))],
-        "images": [{"uri": _png(IMAGES[k])} for k in ORDER],
+        "images": [{"uri": _png(images[k])} for k in ORDER],
         "accessors": [
             {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
              "min": [-1.5, 0, -1.5], "max": [1.5, 0, 1.5]},
             {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC3"},
             {"bufferView": 2, "componentType": 5126, "count": 4, "type": "VEC2"},
-            {"bufferView": 3, "componentType": 5123, "count": 6, "type": "SCALAR"}],
+            {"bufferView": 3, "componentType": 5123, "count": 6, "type": "SCALAR"},
+            {"bufferView": 4, "componentType": 5126, "count": 4, "type": "VEC4"}][:4 + (tangent is not None)],
         "bufferViews": views,
         "buffers": [{"byteLength": len(data), "uri": "data:application/octet-stream;base64,"
                      + base64.b64encode(data).decode()}],
@@ -100,8 +109,8 @@ intensity = [0.8, 0.8, 0.75]
 """
 
 
-def _scene(tmp_path):
-    write_pbr_gltf(tmp_path / "pbr.gltf")
+def _scene(tmp_path, **kw):
+    write_pbr_gltf(tmp_path / "pbr.gltf", **kw)
     (tmp_path / "scene.toml").write_text(SCENE)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -149,3 +158,24 @@ def test_metallic_low_roughness_scene_meets_the_agreement_targets(tmp_path):
     assert all(a.meets_targets().values()), a.meets_targets()
     assert a.agreement_psnr_db >= TARGETS["agreement_psnr_db"]
     assert a.interior_pixels > 0.5 * 64 * 36
+
+
+def test_the_assets_own_tangents_orient_its_normal_map(tmp_path):
+    """The floor's generated frame is T = +x, B = +z (u along x, our v along z). Given TANGENT
+    (0, 0, 1, +1), T = +z and B = N x T = +x: swapping the texel's x and y must then give the same
+    image, and the given tangent must matter."""
+    def render(sub, **kw):
+        (tmp_path / sub).mkdir()
+        s, warned = _scene(tmp_path / sub, **kw)
+        assert warned == []
+        from raster import Rasterizer
+        r = Rasterizer(s, 48, 27)
+        try:
+            return r.render(0)["color"]
+        finally:
+            r.close()
+    given = render("given", tangent=(0.0, 0.0, 1.0, 1.0), normal_texel=(200, 128, 220))
+    generated = render("generated", normal_texel=(128, 200, 220))
+    ignored = render("ignored", normal_texel=(200, 128, 220))
+    np.testing.assert_allclose(given, generated, rtol=1e-5, atol=1e-6)
+    assert np.abs(given - ignored).max() > 0.05
