@@ -56,10 +56,13 @@ def mapped_normal(geo: FrameGeometry, maps: SurfaceMaps, surf, n: mi.Vector3f, f
         t_v, w_v = _vertex_tangent(geo, maps, face, surf.p, own)
         t, w = dr.select(own, t_v, t), dr.select(own, w_v, w)
     t = dr.select(flip, -t, t)
-    t = dr.normalize(t - n * dr.dot(n, t))
+    t = t - n * dr.dot(n, t)
+    # a tangent along the normal (a degenerate asset tangent, a UV gradient across the normal) has no
+    # direction left: any perpendicular one keeps the result finite
+    t = dr.select(dr.squared_norm(t) > 1e-12, dr.normalize(t), mi.coordinate_system(n)[0])
     b = dr.cross(n, t) * dr.select(flip, -w, w)
-    bent = dr.normalize(t * ((2.0 * x - 1.0) * scale) + b * ((2.0 * y - 1.0) * scale) + n * (2.0 * z - 1.0))
-    return dr.select(has, bent, n)
+    bent = t * ((2.0 * x - 1.0) * scale) + b * ((2.0 * y - 1.0) * scale) + n * (2.0 * z - 1.0)
+    return dr.select(has & (dr.squared_norm(bent) > 0), dr.normalize(bent), n)
 
 
 def shade_maps(geo: FrameGeometry, surf, view: mi.Vector3f, hit, base: mi.Color3f, n_sh: mi.Vector3f, flip,

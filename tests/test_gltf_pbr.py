@@ -7,10 +7,13 @@ import json
 import warnings
 
 import numpy as np
+import pytest
 from PIL import Image
 
 from references import ReferenceCache
-from scenes import SceneWarning
+from scenes import SceneError, SceneWarning
+from scenes.description import Camera, Material, MeshSpec, Scene, SceneObject, Texture
+from scenes.resolved import ResolvedScene
 from scenes.loader import load_scene_file
 from study.engine.agreement import TARGETS, check_agreement
 
@@ -179,3 +182,28 @@ def test_the_assets_own_tangents_orient_its_normal_map(tmp_path):
     ignored = render("ignored", normal_texel=(200, 128, 220))
     np.testing.assert_allclose(given, generated, rtol=1e-5, atol=1e-6)
     assert np.abs(given - ignored).max() > 0.05
+    # a tangent along the normal has no direction: shaded finite (the raster refuses NaN buffers)
+    assert np.all(np.isfinite(render("parallel", tangent=(0.0, 1.0, 0.0, 1.0), normal_texel=(200, 128, 220))))
+
+
+@pytest.mark.parametrize("key, value", [("roughnessFactor", 1.5), ("metallicFactor", -0.5), ("roughnessFactor", "x")])
+def test_a_factor_outside_0_1_is_refused_naming_the_file_and_field(tmp_path, key, value):
+    write_pbr_gltf(tmp_path / "pbr.gltf")
+    doc = json.loads((tmp_path / "pbr.gltf").read_text())
+    doc["materials"][0]["pbrMetallicRoughness"][key] = value
+    (tmp_path / "pbr.gltf").write_text(json.dumps(doc))
+    (tmp_path / "scene.toml").write_text(SCENE)
+    with pytest.raises(SceneError) as err:
+        load_scene_file(str(tmp_path / "scene.toml"))
+    msg = str(err.value)
+    assert "pbr.gltf" in msg and f"materials[0].pbrMetallicRoughness.{key}" in msg and str(value) in msg
+
+
+def test_a_zero_length_normal_texel_is_refused():
+    flat = np.full((2, 2, 3), 0.75, np.float32)
+    flat[1, 0] = 0.5                                     # decodes to (0, 0, 0)
+    desc = Scene(name="z", camera=Camera(position=(0.0, 0.0, 3.0), target=(0.0, 0.0, 0.0)), ambient=(0.2, 0.2, 0.2),
+                 objects=(SceneObject(name="p", mesh=MeshSpec(kind="plane"),
+                                      material=Material(roughness=0.5, normal_map=Texture(kind="array", data=flat))),))
+    with pytest.raises(SceneError, match=r"objects\[0\] \('p'\)\.material\.normal_map: 1 texel.*row 1, column 0"):
+        ResolvedScene(desc)
