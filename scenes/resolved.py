@@ -94,6 +94,7 @@ class ResolvedScene:
         # One array per texture description: objects that share one (a glTF material used by
         # several primitives) share the decoded data.
         built: dict[int, np.ndarray] = {}
+        checked: set[int] = set()
 
         def tex(t: Texture, where: str, alpha: bool, srgb: bool = True) -> np.ndarray:
             if id(t) not in built:
@@ -109,8 +110,9 @@ class ResolvedScene:
                     for k, srgb in MAP_ROLES if getattr(mat, k) is not None}
             if (mat.texture is not None or mat.alpha is not None or maps) and m.uvs is None:
                 raise SceneError(f"{where}.material: a texture needs UVs but the mesh has none")
-            if "normal_map" in maps:
+            if "normal_map" in maps and id(maps["normal_map"]) not in checked:   # once per shared array
                 _check_normal_map(maps["normal_map"], f"{where}.material.normal_map")
+                checked.add(id(maps["normal_map"]))
             self.maps.append(maps)
             self.meshes.append(m)
             self.textures.append(None if mat.texture is None else
@@ -287,6 +289,10 @@ class ResolvedScene:
         for i, maps in enumerate(self.maps):   # none in Lambert scenes: they keep their hash
             for k in sorted(maps):
                 h.update(f"{i}.{k}".encode())
+                if id(maps[k]) in seen:          # a glTF material's map, shared by its primitives
+                    h.update(f"={seen[id(maps[k])]}".encode())
+                    continue
+                seen[id(maps[k])] = len(seen)
                 h.update(np.ascontiguousarray(maps[k]).tobytes())
         for d in self.asset_digests:   # none without glTF objects: other scenes keep their hash
             h.update(d.encode())
