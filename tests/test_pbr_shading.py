@@ -184,3 +184,14 @@ def test_bad_roughness_or_metallic_is_refused_by_name(tmp_path, field, value):
     r = CliRunner().invoke(main, ["render", "--scene", str(f), "--no-reference", "--out", str(tmp_path / "out")])
     assert r.exit_code == 2 and f"material.{field}" in r.output and "Traceback" not in r.output
     assert not (tmp_path / "out").exists()
+
+
+def test_path_transport_refuses_the_metallic_roughness_model():
+    """Mitsuba's path tracer gets Lambert BSDFs (references/mitsuba_scene.py): a model material
+    there would be rendered as something else, so the description refuses it by object name."""
+    obj = SceneObject(name="shiny", mesh=MeshSpec(kind="sphere"), material=Material(roughness=0.3))
+    with pytest.raises(ValueError, match=r"transport 'path'.*\['shiny'\]"):
+        Scene(name="p", transport="path", camera=Camera(position=(0.0, 0.0, 3.0), target=(0.0, 0.0, 0.0)),
+              objects=(obj,), ambient=(0.2, 0.2, 0.2))
+    Scene(name="p", transport="path", camera=Camera(position=(0.0, 0.0, 3.0), target=(0.0, 0.0, 0.0)),
+          objects=(obj.model_copy(update={"material": Material(metallic=0.0)}),), ambient=(0.2, 0.2, 0.2))
