@@ -104,7 +104,7 @@ transform = { translate = [0.3, 0.45, 0.0] }
 [[lights]]
 type = "point"
 position = [-1.0, 2.0, 1.5]
-intensity = [4.0, 4.0, 4.0]
+intensity = [2.0, 2.0, 2.0]
 [[lights]]
 type = "directional"
 direction = [0.4, -1.0, -0.3]
