@@ -265,10 +265,12 @@ class Scene(_Strict):
         gltf_cams = [o.name for o in self.objects if o.mesh.kind == "gltf" and o.mesh.camera]
         if len(gltf_cams) > 1:
             raise ValueError(f"objects {gltf_cams} all set camera = true; at most one may")
-        pbr = [o.name for o in self.objects if o.material.is_gltf_model]
-        if self.transport == "path" and pbr:
-            raise ValueError(f"transport 'path' (Mitsuba's path tracer) shades Lambert materials only; objects "
-                             f"{pbr[:3]} declare roughness/metallic/normal maps: use direct_shadows")
+        beyond = [o.name for o in self.objects if o.material.is_gltf_model or o.material.occlusion is not None
+                  or o.material.emission_texture is not None]
+        if self.transport == "path" and beyond:
+            raise ValueError(f"transport 'path' (Mitsuba's path tracer) shades Lambert materials with constant "
+                             f"emission only; objects {beyond[:3]} declare roughness, metallic or material maps: "
+                             "use direct_shadows")
         c = self.camera
         if not gltf_cams and (c is None or c.position is None or c.target is None):
             raise ValueError("camera needs a position and a target (or a glTF object with camera = true)")
