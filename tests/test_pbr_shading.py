@@ -117,16 +117,17 @@ def test_directional_albedo_is_at_most_one(metallic, base, views):
         assert albedos[0.1, 1.0] > 0.99 and albedos[1.0, 1.0] > 0.3
 
 
-def _plane_scene(normal_map=None, rotate_axis=(0.0, 1.0, 0.0), rotate_deg=0.0, **mat):
+def _plane_scene(normal_map=None, rotate_axis=(0.0, 1.0, 0.0), rotate_deg=0.0, lights=True,
+                 ambient=(0.1, 0.12, 0.15), transport="direct", **mat):
+    mat = {"albedo": (0.8, 0.6, 0.4), "roughness": 0.35, "metallic": 0.4, **mat}
     return ResolvedScene(Scene(
-        name="plane", transport="direct", camera=Camera(position=(0.3, 0.2, 3.0), target=(0.0, 0.0, 0.0)),
+        name="plane", transport=transport, camera=Camera(position=(0.3, 0.2, 3.0), target=(0.0, 0.0, 0.0)),
         objects=(SceneObject(name="p", mesh=MeshSpec(kind="plane", size=(4.0, 4.0, 1.0)),
-                             material=Material(albedo=(0.8, 0.6, 0.4), roughness=0.35, metallic=0.4,
-                                               normal_map=normal_map, **mat),
+                             material=Material(normal_map=normal_map, **mat),
                              transform=Transform(rotate_axis=rotate_axis, rotate_deg=rotate_deg)),),
         lights=(DirectionalLight(direction=(-0.4, -0.3, -1.0), intensity=(1.0, 0.9, 0.8)),
-                PointLight(position=(-0.5, 0.8, 1.5), intensity=(2.0, 2.0, 2.0))),
-        ambient=(0.1, 0.12, 0.15)))
+                PointLight(position=(-0.5, 0.8, 1.5), intensity=(2.0, 2.0, 2.0))) if lights else (),
+        ambient=ambient))
 
 
 def _shade_at(scene, points, normal, uv):
@@ -156,6 +157,30 @@ def test_a_constant_normal_map_shades_as_the_tilted_plane():
     np.testing.assert_allclose(a, b, rtol=2e-6, atol=1e-7)
     untilted = _shade_at(tilted, pts, [0.0, 0.0, 1.0], uv)
     assert np.abs(untilted - a).max() > 1e-2               # the tilt changes the shading
+
+
+def test_maps_act_as_gltf_defines_them():
+    """Metallic-roughness: G scales roughness, B metallic; occlusion: 1 + strength (R - 1) on the
+    ambient term only; emission texture: times the emission factor."""
+    const = lambda *c: Texture(kind="array", data=np.tile(np.array(c, np.float32), (2, 2, 1)))   # noqa: E731
+    pts = np.array([[0.1, 0.2, 0.0], [-0.7, 0.4, 0.0], [0.9, -1.1, 0.0]])
+    uv = (pts[:, :2] + 2.0) / 4.0
+    at = lambda scene: _shade_at(scene, pts, [0.0, 0.0, 1.0], uv)   # noqa: E731
+    mapped = at(_plane_scene(roughness=0.8, metallic=1.0, metallic_roughness=const(0.9, 0.5, 0.25)))
+    np.testing.assert_allclose(mapped, at(_plane_scene(roughness=0.4, metallic=0.25)), rtol=1e-6)
+    assert np.abs(mapped - at(_plane_scene(roughness=0.2, metallic=0.5))).max() > 1e-3   # not swapped
+    occ = {"occlusion": const(0.3, 0.9, 0.9), "occlusion_strength": 0.5}
+    ambient_only = at(_plane_scene(lights=False, **occ)) / at(_plane_scene(lights=False))
+    np.testing.assert_allclose(ambient_only, 1 + 0.5 * (0.3 - 1), rtol=1e-6)
+    np.testing.assert_allclose(at(_plane_scene(ambient=(0.0, 0.0, 0.0), **occ)),
+                               at(_plane_scene(ambient=(0.0, 0.0, 0.0))), rtol=1e-7)          # lights: untouched
+    glow = {"emission": (2.0, 1.0, 0.5), "transport": "unlit", "albedo": (0.0, 0.0, 0.0)}
+    np.testing.assert_allclose(at(_plane_scene(emission_texture=const(0.5, 0.25, 1.0), **glow)),
+                               np.tile([1.0, 0.25, 0.5], (3, 1)), rtol=1e-7)
+    # a Lambert material with an occlusion map takes the same rule
+    lambert = at(_plane_scene(lights=False, roughness=None, metallic=None, **occ))
+    np.testing.assert_allclose(lambert, np.tile(np.multiply((0.8, 0.6, 0.4), (0.1, 0.12, 0.15)) * 0.65, (3, 1)),
+                               rtol=1e-6)
 
 
 BAD = """
