@@ -116,8 +116,8 @@ class Rasterizer:
         obj = array(mi.UInt32, obj_ids, np.uint32)
         valid = obj > 0
         face_off = array(mi.UInt32, geo.face_offset, np.uint32)
-        face = (dr.gather(mi.UInt32, face_off, dr.maximum(obj, 1) - 1, valid)
-                + array(mi.UInt32, prims, np.uint32))
+        prim = array(mi.UInt32, prims, np.uint32)
+        face = dr.gather(mi.UInt32, face_off, dr.maximum(obj, 1) - 1, valid) + prim
         i0, i1, i2 = (dr.gather(mi.UInt32, geo.faces, face * 3 + k, valid) for k in range(3))
         v0, v1, v2 = (_gather3(geo.positions, i) for i in (i0, i1, i2))
         e1, e2 = v1 - v0, v2 - v0
@@ -138,7 +138,7 @@ class Rasterizer:
         n_sh = dr.select(smooth, n_interp, n_geo)
         uv = (dr.gather(mi.Point2f, geo.uvs, i0, valid) * b0 + dr.gather(mi.Point2f, geo.uvs, i1, valid) * b1
               + dr.gather(mi.Point2f, geo.uvs, i2, valid) * b2)
-        return ray_d, Surface(obj=obj, p=p, n_geo=n_geo, n_sh=n_sh, uv=uv), (i0, i1, i2, b0, b1, b2)
+        return ray_d, Surface(obj=obj, p=p, n_geo=n_geo, n_sh=n_sh, uv=uv, prim=prim), (i0, i1, i2, b0, b1, b2)
 
     def supersample(self, t: int, mask: np.ndarray, offsets, reuse: bool = True) -> tuple[np.ndarray, dict]:
         """Mean colour of extra samples at `offsets` (pixels), shaded only where `mask` is set.

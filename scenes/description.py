@@ -12,7 +12,7 @@ from __future__ import annotations
 from typing import Annotated, Literal, Optional, Union
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_serializer, model_validator
 
 Vec3 = tuple[float, float, float]
 RGB = tuple[Annotated[float, Field(ge=0)], Annotated[float, Field(ge=0)], Annotated[float, Field(ge=0)]]
@@ -95,12 +95,47 @@ class Texture(_Strict):
         return self
 
 
+_Unit = Annotated[float, Field(ge=0, le=1)]
+
+
 class Material(_Strict):
+    """Lambert (albedo) unless it declares `roughness`, `metallic` > 0, a `metallic_roughness` or a
+    `normal_map` texture: then the glTF 2.0 metallic-roughness model (shading/brdf.py), with
+    `albedo` as the base colour and metallic 0 / roughness 1 where left out. Texture roles follow
+    glTF: texture and emission_texture are colour (sRGB files), the others data (linear files)."""
     albedo: RGB = (0.8, 0.8, 0.8)
     emission: RGB = (0.0, 0.0, 0.0)       # radiance added to the shaded colour (lamps, HDR tests)
     texture: Optional[Texture] = None     # multiplies albedo
     alpha: Optional[Texture] = None       # cut-out: a sample is kept where alpha >= alpha_threshold
     alpha_threshold: float = Field(0.5, gt=0, le=1)
+    metallic: Optional[_Unit] = None
+    roughness: Optional[_Unit] = None     # perceptual roughness; the GGX alpha is its square
+    metallic_roughness: Optional[Texture] = None   # G multiplies roughness, B metallic (glTF)
+    normal_map: Optional[Texture] = None  # tangent space, (2 * texel - 1) * (scale, scale, 1)
+    normal_scale: float = 1.0
+    emission_texture: Optional[Texture] = None     # multiplies emission
+    occlusion: Optional[Texture] = None   # R scales the ambient term only
+    occlusion_strength: _Unit = 1.0
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler):
+        # Fields left at their defaults stay out of dumps, so a Lambert scene's content hash (and
+        # every cache key made from it) is the one it had before these fields existed.
+        out = handler(self)
+        for k in _MATERIAL_EXTRAS:
+            if getattr(self, k) == Material.model_fields[k].default:
+                out.pop(k, None)
+        return out
+
+    @property
+    def is_gltf_model(self) -> bool:
+        """True where the material needs the metallic-roughness model (else it is exactly Lambert)."""
+        return (self.roughness is not None or bool(self.metallic) or self.metallic_roughness is not None
+                or self.normal_map is not None)
+
+
+_MATERIAL_EXTRAS = ("metallic", "roughness", "metallic_roughness", "normal_map", "normal_scale",
+                    "emission_texture", "occlusion", "occlusion_strength")
 
 
 class MeshSpec(_Strict):
@@ -230,6 +265,12 @@ class Scene(_Strict):
         gltf_cams = [o.name for o in self.objects if o.mesh.kind == "gltf" and o.mesh.camera]
         if len(gltf_cams) > 1:
             raise ValueError(f"objects {gltf_cams} all set camera = true; at most one may")
+        beyond = [o.name for o in self.objects if o.material.is_gltf_model or o.material.occlusion is not None
+                  or o.material.emission_texture is not None]
+        if self.transport == "path" and beyond:
+            raise ValueError(f"transport 'path' (Mitsuba's path tracer) shades Lambert materials with constant "
+                             f"emission only; objects {beyond[:3]} declare roughness, metallic or material maps: "
+                             "use direct_shadows")
         c = self.camera
         if not gltf_cams and (c is None or c.position is None or c.target is None):
             raise ValueError("camera needs a position and a target (or a glTF object with camera = true)")
@@ -242,6 +283,10 @@ class Scene(_Strict):
             f.append("texture")
         if any(o.material.alpha is not None for o in self.objects):
             f.append("alpha_cutout")
+        if any(o.material.is_gltf_model for o in self.objects):
+            f.append("metallic_roughness")
+        if any(o.material.normal_map is not None for o in self.objects):
+            f.append("normal_map")
         if self.transport in ("direct_shadows", "path"):
             f.append("shadows")
         if any(any(o.motion.velocity) or o.motion.spin_deg for o in self.objects):

@@ -2,8 +2,12 @@
 
 An object with `mesh = { kind = "gltf", path = "...", camera = true }` becomes one scene object per
 mesh primitive of the file's default scene, each with its node's world matrix baked into its
-vertices and its own material (baseColorFactor, the sRGB baseColorTexture on its TEXCOORD_n,
-alphaMode MASK / alphaCutoff as the cut-out, emissiveFactor). The object's own transform and motion
+vertices and its own material: the metallic-roughness model (shading/brdf.py) with baseColorFactor,
+the sRGB baseColorTexture, metallicFactor, roughnessFactor, metallicRoughnessTexture (G roughness,
+B metallic), normalTexture (+ scale; on the primitive's TANGENTs where it has them, else tangents
+generated per triangle from the UVs), emissiveFactor (x KHR_materials_emissive_strength) and emissiveTexture, occlusionTexture
+(+ strength; scales the ambient term), all sampled on the first texture's TEXCOORD_n, and alphaMode
+MASK / alphaCutoff as the cut-out. The object's own transform and motion
 apply on top, to the whole file. With `camera = true` the first perspective camera placed in the
 scene supplies the view, field by field where the scene file's [camera] does not set it.
 
@@ -98,6 +102,7 @@ class _Materials:
         self.c, self.unsupported = c, unsupported
         self._rgb: dict[int, np.ndarray] = {}
         self._alpha: dict[int, np.ndarray] = {}
+        self._data: dict[int, np.ndarray] = {}
         self._made: dict = {}
 
     def _image(self, tex_index: int, where: str) -> int:
@@ -119,14 +124,48 @@ class _Materials:
             lin = colour.cctf_decoding(rgba[..., :3].astype(np.float32) / 255.0, function="sRGB")
             self._rgb[src] = np.ascontiguousarray(lin, np.float32)
             self._alpha[src] = np.ascontiguousarray(rgba[..., 3], np.float32) / np.float32(255.0)
+            # data textures (normal, metallic-roughness, occlusion) are stored linearly
+            self._data[src] = np.ascontiguousarray(rgba[..., :3], np.float32) / np.float32(255.0)
         return src
+
+    def _maps(self, m: dict, pbr: dict, where: str) -> tuple[dict, int | None]:
+        """The material's textures by Material field, and the texcoord set they are sampled on
+        (the first texture's; one set per primitive is kept, a texture on another is reported)."""
+        roles = (("texture", pbr.get("baseColorTexture"), "pbrMetallicRoughness.baseColorTexture", "rgb"),
+                 ("metallic_roughness", pbr.get("metallicRoughnessTexture"),
+                  "pbrMetallicRoughness.metallicRoughnessTexture", "data"),
+                 ("normal_map", m.get("normalTexture"), "normalTexture", "data"),
+                 ("emission_texture", m.get("emissiveTexture"), "emissiveTexture", "rgb"),
+                 ("occlusion", m.get("occlusionTexture"), "occlusionTexture", "data"))
+        out, texcoord = {}, None
+        for field_name, tinfo, key, kind in roles:
+            if tinfo is None:
+                continue
+            src = self._image(tinfo["index"], f"{where}.{key}.index")
+            out[field_name] = Texture(kind="array", data=(self._rgb if kind == "rgb" else self._data)[src])
+            k = int(tinfo.get("texCoord", 0))
+            if texcoord is None:
+                texcoord = k
+            elif k != texcoord:
+                self.unsupported.add(f"{key.split('.')[-1]} on TEXCOORD_{k} (sampled on TEXCOORD_{texcoord})")
+            for ext in tinfo.get("extensions", {}):
+                self.unsupported.add(ext)
+        return out, texcoord
+
+    @staticmethod
+    def _unit(d: dict, key: str, default: float, where: str) -> float:
+        v = d.get(key, default)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v <= 1:
+            raise _Malformed(f"{where}.{key}", f"must be a number in [0, 1], got {v!r}")
+        return float(v)
 
     def get(self, index: int | None, where: str) -> tuple[Material | None, int | None]:
         """(material, texcoord set) for a glTF material index; material None = cut out entirely."""
         if index in self._made:
             return self._made[index]
         if index is None:
-            made = (Material(albedo=(1.0, 1.0, 1.0)), None)   # the spec's default material
+            # the specification's default material: white, fully metallic, fully rough
+            made = (Material(albedo=(1.0, 1.0, 1.0), metallic=1.0, roughness=1.0), None)
             self._made[index] = made
             return made
         m = self.c.item("materials", index, where)
@@ -140,13 +179,13 @@ class _Materials:
             m.get("extensions", {}).get("KHR_materials_emissive_strength", {}).get("emissiveStrength", 1.0)
         if emissive.shape != (3,) or not np.all(np.isfinite(emissive)) or emissive.min() < 0:
             raise _Malformed(f"{where}.emissiveFactor", f"needs 3 finite numbers >= 0, got {m.get('emissiveFactor')}")
-        for key in ("normalTexture", "occlusionTexture", "emissiveTexture"):
-            if key in m:
-                self.unsupported.add(key)
-        if "metallicRoughnessTexture" in pbr:
-            self.unsupported.add("metallicRoughnessTexture")
-        if pbr.get("metallicFactor", 1.0) > 0:   # the spec's default is fully metallic
-            self.unsupported.add("metallicFactor > 0 (shaded as Lambert)")
+        metallic = self._unit(pbr, "metallicFactor", 1.0, f"{where}.pbrMetallicRoughness")
+        roughness = self._unit(pbr, "roughnessFactor", 1.0, f"{where}.pbrMetallicRoughness")
+        normal_scale = m.get("normalTexture", {}).get("scale", 1.0)
+        if isinstance(normal_scale, bool) or not isinstance(normal_scale, (int, float)) \
+                or not np.isfinite(normal_scale):
+            raise _Malformed(f"{where}.normalTexture.scale", f"must be a finite number, got {normal_scale!r}")
+        strength = self._unit(m.get("occlusionTexture", {}), "strength", 1.0, f"{where}.occlusionTexture")
         for ext in m.get("extensions", {}):
             if ext not in SUPPORTED_EXTENSIONS:
                 self.unsupported.add(ext)
@@ -161,15 +200,11 @@ class _Materials:
         if not np.isfinite(cutoff):
             raise _Malformed(f"{where}.alphaCutoff", f"must be finite, got {cutoff}")
 
-        texture = alpha = None
-        texcoord = None
-        tinfo = pbr.get("baseColorTexture")
-        if tinfo is not None:
-            src = self._image(tinfo["index"], f"{where}.pbrMetallicRoughness.baseColorTexture.index")
-            texcoord = int(tinfo.get("texCoord", 0))
-            texture = Texture(kind="array", data=self._rgb[src])
-            for ext in tinfo.get("extensions", {}):
-                self.unsupported.add(ext)
+        alpha = None
+        maps, texcoord = self._maps(m, pbr, where)
+        texture = maps.pop("texture", None)
+        if texture is not None:
+            src = self._image(pbr["baseColorTexture"]["index"], f"{where}.pbrMetallicRoughness.baseColorTexture.index")
         if mode != "OPAQUE" and cutoff > 0:
             if texture is None:
                 # A constant alpha keeps all or nothing.
@@ -184,7 +219,9 @@ class _Materials:
             elif factor[3] * self._alpha[src].min() < cutoff:
                 alpha = Texture(kind="array", data=self._alpha[src] * np.float32(factor[3]))
         mat = Material(albedo=tuple(factor[:3]), emission=tuple(emissive), texture=texture, alpha=alpha,
-                       alpha_threshold=min(cutoff, 1.0) if alpha is not None else 0.5)
+                       alpha_threshold=min(cutoff, 1.0) if alpha is not None else 0.5,
+                       metallic=metallic, roughness=roughness, normal_scale=float(normal_scale),
+                       occlusion_strength=strength, **maps)
         self._made[index] = (mat, texcoord)
         return self._made[index]
 
@@ -223,6 +260,18 @@ def _unit_normals(n: np.ndarray) -> np.ndarray | None:
     if not np.all(np.isfinite(n)) or not np.all(length > 0):
         return None
     return n / length
+
+
+def _tangents(tg: np.ndarray, world: np.ndarray) -> np.ndarray | None:
+    """TANGENT (xyz, w) under the node's world matrix: xyz transforms as a surface direction, and
+    w flips where the matrix mirrors (the bitangent w N x T must keep pointing along +v)."""
+    tg = tg.astype(np.float64)
+    xyz = tg[:, :3] @ world[:3, :3].T
+    length = np.linalg.norm(xyz, axis=1, keepdims=True)
+    if not np.all(np.isfinite(tg)) or not np.all(length > 0):
+        return None
+    w = np.where(tg[:, 3:] < 0, -1.0, 1.0) * np.sign(np.linalg.det(world[:3, :3]))
+    return np.concatenate([xyz / length, w], 1)
 
 
 def read(obj: SceneObject, base_dir: str | None, where: str) -> Expanded:
@@ -300,12 +349,17 @@ def _read(obj: SceneObject, full: str, where: str) -> Expanded:
                 normals = _unit_normals(n @ np.linalg.inv(world[:3, :3]))   # inverse transpose
                 if normals is None:
                     unsupported.add("zero-length NORMALs (those primitives are flat shaded)")
+            tangents = None
+            if "TANGENT" in attr and mat.normal_map is not None:
+                tangents = _tangents(c.accessor(attr["TANGENT"], f"{pwhere}.attributes.TANGENT", (4,)), world)
+                if tangents is None:
+                    unsupported.add("zero-length or non-finite TANGENTs (those primitives' tangents generated)")
             if len(pos) and (faces.max() >= len(pos)):
                 raise _Malformed(f"{pwhere}.indices", f"index {int(faces.max())} >= {len(pos)} vertices")
             if det < 0:   # a mirroring transform reverses the winding
                 faces = faces[:, ::-1]
             verts = pos @ world[:3, :3].T + world[:3, 3]
-            for a, what in ((uv, "TEXCOORD"), (normals, "NORMAL")):
+            for a, what in ((uv, "TEXCOORD"), (normals, "NORMAL"), (tangents, "TANGENT")):
                 if a is not None and len(a) != len(pos):
                     raise _Malformed(f"{pwhere}.attributes.{what}", f"{len(a)} values for {len(pos)} vertices")
             # Real assets carry zero-area triangles (strip restarts, collapsed detail): they cover
@@ -317,7 +371,7 @@ def _read(obj: SceneObject, full: str, where: str) -> Expanded:
                 if len(faces) == 0:
                     continue
             name = f"{label}.{pi}"
-            m = MeshData(verts, np.ascontiguousarray(faces, np.int64), uv, normals)
+            m = MeshData(verts, np.ascontiguousarray(faces, np.int64), uv, normals, tangents)
             m.validate(f"{where} ({name}, {pwhere})")
             out.meshes.append(m)
             out.objects.append(SceneObject(name=name, mesh=MeshSpec(kind="arrays", vertices=verts, faces=m.faces,

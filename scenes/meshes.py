@@ -41,6 +41,7 @@ class MeshData:
     faces: np.ndarray               # (F, 3) int64
     uvs: np.ndarray | None = None   # (V, 2)
     normals: np.ndarray | None = None  # (V, 3) for smooth shading; None = flat (face normals)
+    tangents: np.ndarray | None = None  # (V, 4) unit dP/du and handedness w (glTF TANGENT), for normal maps
 
     def validate(self, where: str) -> "MeshData":
         v, f = self.vertices, self.faces
@@ -52,7 +53,7 @@ class MeshData:
             raise SceneError(f"{where}: vertices contain NaN or Inf")
         if f.min() < 0 or f.max() >= len(v):
             raise SceneError(f"{where}: face index out of range [0, {len(v)})")
-        for name, a, k in (("uvs", self.uvs, 2), ("normals", self.normals, 3)):
+        for name, a, k in (("uvs", self.uvs, 2), ("normals", self.normals, 3), ("tangents", self.tangents, 4)):
             if a is not None and (a.shape != (len(v), k) or not np.all(np.isfinite(a))):
                 raise SceneError(f"{where}: {name} must be finite with shape ({len(v)}, {k})")
         bad = degenerate_faces(v, f)

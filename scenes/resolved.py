@@ -32,8 +32,14 @@ def _rotation(axis, deg) -> np.ndarray:
                      [z * x * C - y * s, z * y * C + x * s, c + z * z * C]])
 
 
-def build_texture(tex: Texture, where: str, base_dir: str | None) -> np.ndarray:
-    """(H, W, C) float32 linear values."""
+# Material texture roles besides the base colour and the cut-out: (field, colour-encoded file?)
+MAP_ROLES = (("metallic_roughness", False), ("normal_map", False), ("emission_texture", True),
+             ("occlusion", False))
+
+
+def build_texture(tex: Texture, where: str, base_dir: str | None, srgb: bool = True) -> np.ndarray:
+    """(H, W, C) float32 linear values; an image file is sRGB-decoded where `srgb` (colour), read
+    as stored otherwise (data: normals, metallic-roughness, occlusion)."""
     if tex.kind == "checker":
         n = tex.squares
         i, j = np.meshgrid(np.arange(n), np.arange(n))
@@ -52,7 +58,20 @@ def build_texture(tex: Texture, where: str, base_dir: str | None) -> np.ndarray:
     except Exception as exc:
         raise SceneError(f"{where}: cannot read texture {full}: {exc}") from exc
     # Row 0 of our textures is v = 0 (bottom of the image as usually authored).
+    if not srgb:
+        return np.ascontiguousarray(img[::-1], np.float32)
     return colour.cctf_decoding(img[::-1], function="sRGB").astype(np.float32)
+
+
+def _check_normal_map(a: np.ndarray, where: str) -> None:
+    """A texel whose decoded vector (2 c - 1) has no length has no direction to shade with."""
+    if a.shape[-1] < 3:
+        raise SceneError(f"{where}: a normal map needs 3 channels, got {a.shape[-1]}")
+    zero = np.linalg.norm(2.0 * a[..., :3].astype(np.float64) - 1.0, axis=-1) < 1e-6
+    if zero.any():
+        r, c = np.argwhere(zero)[0]
+        raise SceneError(f"{where}: {int(zero.sum())} texel(s) decode to a zero-length normal "
+                         f"(first at row {r}, column {c}: {a[r, c, :3].tolist()})")
 
 
 @dataclass
@@ -63,20 +82,23 @@ class ResolvedScene:
     meshes: list[MeshData] = field(init=False)
     textures: list[np.ndarray | None] = field(init=False)   # albedo texture per object
     alphas: list[np.ndarray | None] = field(init=False)     # alpha texture per object (H, W)
+    # per object: the textures of MAP_ROLES it declares, by field name ((H, W, C) float32 linear)
+    maps: list[dict[str, np.ndarray]] = field(init=False)
     # sha256 of asset files hashed as files (glTF and the buffers and images it names)
     asset_digests: list[str] = field(init=False)
 
     def __post_init__(self):
-        self.meshes, self.textures, self.alphas, self.asset_digests = [], [], [], []
+        self.meshes, self.textures, self.alphas, self.asset_digests, self.maps = [], [], [], [], []
         pre = f"{self.source}: " if self.source else ""
         prebuilt = self._expand_gltf(pre)
         # One array per texture description: objects that share one (a glTF material used by
         # several primitives) share the decoded data.
         built: dict[int, np.ndarray] = {}
+        checked: set[int] = set()
 
-        def tex(t: Texture, where: str, alpha: bool) -> np.ndarray:
+        def tex(t: Texture, where: str, alpha: bool, srgb: bool = True) -> np.ndarray:
             if id(t) not in built:
-                a = build_texture(t, where, self.base_dir)
+                a = build_texture(t, where, self.base_dir, srgb)
                 built[id(t)] = a.mean(axis=-1) if alpha else a
             return built[id(t)]
 
@@ -84,8 +106,14 @@ class ResolvedScene:
             where = f"{pre}objects[{i}] ({obj.name!r})"
             m = prebuilt[i] if i in prebuilt else meshes.build(obj.mesh, f"{where}.mesh", self.base_dir)
             mat = obj.material
-            if (mat.texture is not None or mat.alpha is not None) and m.uvs is None:
+            maps = {k: tex(getattr(mat, k), f"{where}.material.{k}", False, srgb)
+                    for k, srgb in MAP_ROLES if getattr(mat, k) is not None}
+            if (mat.texture is not None or mat.alpha is not None or maps) and m.uvs is None:
                 raise SceneError(f"{where}.material: a texture needs UVs but the mesh has none")
+            if "normal_map" in maps and id(maps["normal_map"]) not in checked:   # once per shared array
+                _check_normal_map(maps["normal_map"], f"{where}.material.normal_map")
+                checked.add(id(maps["normal_map"]))
+            self.maps.append(maps)
             self.meshes.append(m)
             self.textures.append(None if mat.texture is None else
                                  tex(mat.texture, f"{where}.material.texture", False))
@@ -206,6 +234,16 @@ class ResolvedScene:
         w = n @ np.linalg.inv(self.object_pose(i, t)[:3, :3])   # inverse transpose, row vectors
         return w / np.linalg.norm(w, axis=1, keepdims=True)
 
+    def world_tangents(self, i: int, t: int) -> np.ndarray | None:
+        """(V, 4): the mesh's tangents under the pose at t, w flipped where the pose mirrors."""
+        tg = self.meshes[i].tangents
+        if tg is None:
+            return None
+        m = self.object_pose(i, t)[:3, :3]
+        xyz = tg[:, :3] @ m.T
+        xyz /= np.linalg.norm(xyz, axis=1, keepdims=True)
+        return np.concatenate([xyz, tg[:, 3:] * np.sign(np.linalg.det(m))], 1)
+
     def is_static(self, i: int) -> bool:
         mo = self.desc.objects[i].motion
         return not any(mo.velocity) and not mo.spin_deg
@@ -237,6 +275,8 @@ class ResolvedScene:
         for arrays in (self.meshes, self.textures, self.alphas):
             for a in arrays:
                 parts = (a.vertices, a.faces, a.uvs, a.normals) if isinstance(a, MeshData) else (a,)
+                if isinstance(a, MeshData) and a.tangents is not None:   # absent: hashes as before
+                    parts += (a.tangents,)
                 for p in parts:
                     if p is not None and self.asset_digests and id(p) in seen:
                         # A glTF material's texture, shared by its primitives, is hashed once
@@ -246,6 +286,14 @@ class ResolvedScene:
                     if p is not None:
                         seen[id(p)] = len(seen)
                     h.update(b"-" if p is None else np.ascontiguousarray(p).tobytes())
+        for i, maps in enumerate(self.maps):   # none in Lambert scenes: they keep their hash
+            for k in sorted(maps):
+                h.update(f"{i}.{k}".encode())
+                if id(maps[k]) in seen:          # a glTF material's map, shared by its primitives
+                    h.update(f"={seen[id(maps[k])]}".encode())
+                    continue
+                seen[id(maps[k])] = len(seen)
+                h.update(np.ascontiguousarray(maps[k]).tobytes())
         for d in self.asset_digests:   # none without glTF objects: other scenes keep their hash
             h.update(d.encode())
         return h.hexdigest()[:16]

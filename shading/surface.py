@@ -9,6 +9,9 @@ Mitsuba's multi-bounce path tracer as its reference (references/mitsuba_scene.py
 frames are shaded as direct_shadows, and the gap between the two is reported, not hidden.
 Directional lights give E = intensity; point lights E = intensity / d^2. Surfaces are two-sided:
 normals are turned to face the viewer. Textures use nearest-texel lookup with wrap-around.
+Materials beyond Lambert (the glTF metallic-roughness model, normal, occlusion and emissive maps)
+are shaded by shading/material.py, traced only in scenes that have them, so a Lambert scene's
+kernel is the one above.
 """
 from __future__ import annotations
 
@@ -19,7 +22,9 @@ import numpy as np
 from backend import dr, mi, opaque
 from scenes.description import DirectionalLight
 
+from . import material
 from .frame import FrameGeometry
+from .texels import texel as _texel
 
 MAX_ALPHA_LAYERS = 8   # cut-out surfaces skipped along one ray before giving up (counted as a miss)
 
@@ -32,19 +37,6 @@ class Surface:
     n_sh: mi.Vector3f      # unit shading normal (interpolated for smooth objects)
     uv: mi.Point2f
     prim: mi.UInt32 | None = None   # triangle index within the object, where known
-
-
-def _texel(table: mi.UInt32, data: mi.Float, obj, uv, channels: int, active):
-    """Nearest texel of each object's texture; (has_texture, [channel values])."""
-    off = dr.gather(mi.UInt32, table, obj * 3, active)
-    w = dr.gather(mi.UInt32, table, obj * 3 + 1, active)
-    h = dr.gather(mi.UInt32, table, obj * 3 + 2, active)
-    has = active & (w > 0)
-    fu, fv = uv.x - dr.floor(uv.x), uv.y - dr.floor(uv.y)
-    col = dr.minimum(mi.UInt32(fu * mi.Float(w)), dr.maximum(w, 1) - 1)
-    row = dr.minimum(mi.UInt32(fv * mi.Float(h)), dr.maximum(h, 1) - 1)
-    idx = (off + row * w + col) * channels
-    return has, [dr.gather(mi.Float, data, idx + c, has) for c in range(channels)]
 
 
 def albedo_at(geo: FrameGeometry, obj, uv, active=True) -> mi.Color3f:
@@ -100,6 +92,28 @@ def _occluded(geo: FrameGeometry, origin, direction, dist, active) -> mi.Bool:
     return _intersect_opaque(geo, ray, active).is_valid()
 
 
+def _lights(geo: FrameGeometry, p, origin, n, hit):
+    """Per light, in order: (its light-mask bit, unit direction to it, irradiance E at p,
+    max(0, n . l), whether it reaches p: facing n and, with shadows, unoccluded)."""
+    desc = geo.scene.desc
+    shadows = desc.transport in ("direct_shadows", "path")
+    for light in desc.lights:
+        if isinstance(light, DirectionalLight):
+            d = -np.asarray(light.direction, float)
+            l_dir = opaque(mi.Vector3f, *(d / np.linalg.norm(d)))
+            dist, e = mi.Float(dr.inf), opaque(mi.Color3f, *light.intensity)
+        else:
+            to_light = opaque(mi.Point3f, *light.position) - p
+            dist = dr.norm(to_light)
+            l_dir = to_light / dist
+            e = opaque(mi.Color3f, *light.intensity) / dr.square(dist)
+        cos = dr.maximum(dr.dot(n, l_dir), 0.0)
+        lit = hit & (cos > 0)
+        if shadows:
+            lit &= ~_occluded(geo, origin, l_dir, dist * (1 - 1e-4), lit)
+        yield 1 << desc.lights.index(light), l_dir, e, cos, lit
+
+
 def shade(geo: FrameGeometry, surf: Surface, eye: np.ndarray, active=True,
           light_mask: list | None = None) -> mi.Color3f:
     """Outgoing radiance towards the camera at `eye` (world position).
@@ -118,27 +132,20 @@ def shade(geo: FrameGeometry, surf: Surface, eye: np.ndarray, active=True,
         n_geo = dr.select(flip, -surf.n_geo, surf.n_geo)
         n_sh = dr.select(flip, -surf.n_sh, surf.n_sh)
         irradiance = opaque(mi.Color3f, *desc.ambient)
-        shadows = desc.transport in ("direct_shadows", "path")
         origin = surf.p + n_geo * (1e-4 * (1.0 + dr.max(dr.abs(surf.p))))
-        for light in desc.lights:
-            if isinstance(light, DirectionalLight):
-                d = -np.asarray(light.direction, float)
-                l_dir = opaque(mi.Vector3f, *(d / np.linalg.norm(d)))
-                dist, e = mi.Float(dr.inf), opaque(mi.Color3f, *light.intensity)
-            else:
-                to_light = opaque(mi.Point3f, *light.position) - surf.p
-                dist = dr.norm(to_light)
-                l_dir = to_light / dist
-                e = opaque(mi.Color3f, *light.intensity) / dr.square(dist)
-            cos = dr.maximum(dr.dot(n_sh, l_dir), 0.0)
-            lit = hit & (cos > 0)
-            if shadows:
-                lit &= ~_occluded(geo, origin, l_dir, dist * (1 - 1e-4), lit)
-            irradiance += dr.select(lit, e * cos, 0.0)
-            mask |= dr.select(lit, mi.UInt32(1 << desc.lights.index(light)), 0)
-        colour = albedo * irradiance
+        if geo.maps is None:     # Lambert only: the kernel every such scene always had
+            for bit, _, e, cos, lit in _lights(geo, surf.p, origin, n_sh, hit):
+                irradiance += dr.select(lit, e * cos, 0.0)
+                mask |= dr.select(lit, mi.UInt32(bit), 0)
+            colour = albedo * irradiance
+        else:
+            colour, mask = material.shade_maps(geo, surf, view, hit, albedo, n_sh, flip, irradiance,
+                                               lambda n: _lights(geo, surf.p, origin, n, hit))
     if geo.has_emission:
-        colour += dr.gather(mi.Color3f, geo.obj_emission, surf.obj, hit)
+        emission = dr.gather(mi.Color3f, geo.obj_emission, surf.obj, hit)
+        if geo.maps is not None and geo.maps.has_emit_tex:
+            emission *= material.emission_scale(geo.maps, surf, hit)
+        colour += emission
     if light_mask is not None:
         light_mask.append(dr.select(hit, mask, 0))
     return dr.select(hit, colour, opaque(mi.Color3f, *desc.background))
