@@ -69,13 +69,48 @@ def _gather3(arr: mi.Float, i) -> mi.Vector3f:
     return dr.gather(mi.Vector3f, arr, i)
 
 
+def _ray_dir(cam: CameraState, sx, sy) -> mi.Vector3f:
+    """Direction of the camera ray through image position (sx, sy), pixels."""
+    tx, ty = (opaque(mi.Float, v) for v in cam.tan_half)
+    return (_vec(cam.to_world, 0) * ((2 * sx / cam.width - 1) * tx)
+            + _vec(cam.to_world, 1) * ((1 - 2 * sy / cam.height) * ty) - _vec(cam.to_world, 2))
+
+
+def _plane_uv(ray_o, ray_d, v0, e1, e2, uvs):
+    """UV where a ray meets the plane of triangle (v0, v0 + e1, v0 + e2), barycentrics extrapolated
+    beyond its edges (Moller-Trumbore without the inside test)."""
+    pvec = dr.cross(ray_d, e2)
+    inv = dr.rcp(dr.dot(e1, pvec))
+    tvec = ray_o - v0
+    b1 = dr.dot(tvec, pvec) * inv
+    b2 = dr.dot(ray_d, dr.cross(tvec, e1)) * inv
+    return uvs[0] * (1 - b1 - b2) + uvs[1] * b1 + uvs[2] * b2
+
+
+def uv_footprint(cam: CameraState, sx, sy, v0, e1, e2, uvs):
+    """(du/dx, dv/dx, du/dy, dv/dy) of the triangle's UV per pixel at image position (sx, sy):
+    central differences of the UV where the rays half a pixel either side meet the triangle's
+    plane, computed analytically from the triangle (not from neighbouring pixels, which may hold
+    other triangles; a GPU's 2x2-quad derivatives are the one-pixel forward difference of this)."""
+    ray_o = opaque(mi.Point3f, *cam.position)
+    at = lambda dx, dy: _plane_uv(ray_o, _ray_dir(cam, sx + dx, sy + dy), v0, e1, e2, uvs)   # noqa: E731
+    ddx, ddy = at(0.5, 0.0) - at(-0.5, 0.0), at(0.0, 0.5) - at(0.0, -0.5)
+    return ddx.x, ddx.y, ddy.x, ddy.y
+
+
 class Rasterizer:
     """Renders frames of one scene at one resolution; holds the GL context. `aspect`: the frustum's
     width / height when it is not the image's (a render at an upscaler's fraction of the output
-    keeps the output's frustum)."""
+    keeps the output's frustum). `lod_bias`: added to every trilinear texture's level of detail
+    (docs/method.md, "Texture filtering"); `mipmaps=False` samples their base level bilinearly
+    instead (the agreement check's raster). Scenes without filtered textures ignore both."""
 
-    def __init__(self, scene: ResolvedScene, width: int, height: int, aspect: float | None = None):
+    def __init__(self, scene: ResolvedScene, width: int, height: int, aspect: float | None = None,
+                 lod_bias: float = 0.0, mipmaps: bool = True):
+        if not np.isfinite(lod_bias):
+            raise RasterError(f"lod_bias must be a finite number, got {lod_bias!r}")
         self.scene, self.width, self.height, self.aspect = scene, width, height, aspect
+        self.lod_bias, self.mipmaps = float(lod_bias), bool(mipmaps)
         self.vis = VisibilityPass(width, height)
         self._geo_cache: tuple | None = None
         self._static = all(scene.is_static(i) for i in range(len(scene.meshes)))
@@ -101,10 +136,10 @@ class Rasterizer:
         return array(mi.Float, np.concatenate([self.scene.world_vertices(i, prev_t)
                                                for i in range(len(self.scene.meshes))]), np.float32)
 
-    @staticmethod
-    def _reconstruct(geo, cam: CameraState, idx: mi.UInt32, obj_ids: np.ndarray, prims: np.ndarray, jitter):
+    def _reconstruct(self, geo, cam: CameraState, idx: mi.UInt32, obj_ids: np.ndarray, prims: np.ndarray, jitter):
         """Rebuild the surface each pixel's sample hit: the camera ray through the jittered sample
-        intersected (Moller-Trumbore) with the triangle the visibility pass found there.
+        intersected (Moller-Trumbore) with the triangle the visibility pass found there, and, where
+        a texture is trilinear, its UV footprint there (uv_footprint) with this raster's LOD bias.
         `idx` are pixel indices y*W + x; obj_ids/prims hold their ids."""
         W, H = cam.width, cam.height
         sx = mi.Float(idx % W) + 0.5 + opaque(mi.Float, jitter[0])
@@ -136,9 +171,13 @@ class Rasterizer:
         n_interp = dr.normalize(_gather3(geo.vnormals, i0) * b0 + _gather3(geo.vnormals, i1) * b1
                                 + _gather3(geo.vnormals, i2) * b2)
         n_sh = dr.select(smooth, n_interp, n_geo)
-        uv = (dr.gather(mi.Point2f, geo.uvs, i0, valid) * b0 + dr.gather(mi.Point2f, geo.uvs, i1, valid) * b1
-              + dr.gather(mi.Point2f, geo.uvs, i2, valid) * b2)
-        return ray_d, Surface(obj=obj, p=p, n_geo=n_geo, n_sh=n_sh, uv=uv, prim=prim), (i0, i1, i2, b0, b1, b2)
+        uvs = [dr.gather(mi.Point2f, geo.uvs, i, valid) for i in (i0, i1, i2)]
+        uv = uvs[0] * b0 + uvs[1] * b1 + uvs[2] * b2
+        foot = None
+        if self.mipmaps and geo.mips:
+            foot = (uv_footprint(cam, sx, sy, v0, e1, e2, uvs), opaque(mi.Float, self.lod_bias))
+        surf = Surface(obj=obj, p=p, n_geo=n_geo, n_sh=n_sh, uv=uv, prim=prim, foot=foot)
+        return ray_d, surf, (i0, i1, i2, b0, b1, b2)
 
     def supersample(self, t: int, mask: np.ndarray, offsets, reuse: bool = True) -> tuple[np.ndarray, dict]:
         """Mean colour of extra samples at `offsets` (pixels), shaded only where `mask` is set.
@@ -221,7 +260,7 @@ class Rasterizer:
                 lazy["light_mask"] = (masks[0], 1)
         if "albedo" in buffers:
             bg = opaque(mi.Color3f, *self.scene.desc.background)
-            lazy["albedo"] = (dr.select(valid, albedo_at(geo, obj, uv, valid), bg), 3)
+            lazy["albedo"] = (dr.select(valid, albedo_at(geo, obj, uv, valid, surf.foot), bg), 3)
         if "depth" in buffers or "motion" in buffers:
             pos_cur, depth = image_position(cam, p)
         if "depth" in buffers:

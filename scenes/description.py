@@ -82,6 +82,18 @@ class Texture(_Strict):
     color_a: RGB = (1.0, 1.0, 1.0)
     color_b: RGB = (0.0, 0.0, 0.0)
     data: Optional[np.ndarray] = Field(None, exclude=True)  # array: (H, W, 3) or (H, W) float32, linear
+    # the raster's lookup (docs/method.md, "Texture filtering"): nearest texel; bilinear on the base
+    # level; or trilinear over a mip chain at the pixel's UV footprint plus the column's LOD bias.
+    # The reference integrates the base level (bilinear unless nearest) over each pixel's area.
+    filter: Literal["nearest", "bilinear", "trilinear"] = "nearest"
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler):
+        # left out at its default, so a nearest-texel scene's content hash stays the one it had
+        out = handler(self)
+        if self.filter == "nearest":
+            out.pop("filter", None)
+        return out
 
     @model_validator(mode="after")
     def _check(self):

@@ -5,12 +5,14 @@ surface reconstruction and Mitsuba's ray tracer intersect exactly the same trian
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from backend import dr, mi
 from scenes import ResolvedScene
+
+from .mips import mip_table
 
 
 @dataclass
@@ -34,6 +36,8 @@ class FrameGeometry:
     has_alpha: bool
     mitsuba: object           # mi.Scene with the same triangles; face attribute face_objid
     maps: "SurfaceMaps | None" = None   # only where a material goes beyond Lambert + emission
+    # texture role (a Material field) -> shading.mips.MipTable, only for roles some object filters
+    mips: dict = field(default_factory=dict)
 
     @property
     def n_objects(self) -> int:
@@ -193,4 +197,19 @@ def frame_geometry(scene: ResolvedScene, t: int) -> FrameGeometry:
         obj_emission=mi.Float(emission.ravel()), has_emission=bool(emission.any()),
         obj_tex=obj_tex, tex_data=tex_data, obj_alpha=obj_alpha, obj_alpha_threshold=mi.Float(thr),
         alpha_data=alpha_data, has_alpha=any(a is not None for a in scene.alphas),
-        mitsuba=mi.load_dict(shapes), maps=_surface_maps(scene, t, np.array(offsets)))
+        mitsuba=mi.load_dict(shapes), maps=_surface_maps(scene, t, np.array(offsets)),
+        mips=_mip_tables(scene))
+
+
+def _mip_tables(scene: ResolvedScene) -> dict:
+    """The filtered textures of each role (shading.mips), by Material field."""
+    objs = scene.desc.objects
+    out = {}
+    for role, channels in (("texture", 3), ("metallic_roughness", 3), ("normal_map", 3),
+                           ("emission_texture", 3), ("occlusion", 1)):
+        arrays = scene.textures if role == "texture" else [m.get(role) for m in scene.maps]
+        filters = [getattr(getattr(o.material, role), "filter", "nearest") for o in objs]
+        table = mip_table(arrays, filters, channels)
+        if table is not None:
+            out[role] = table
+    return out

@@ -18,12 +18,12 @@ from backend import dr, mi
 
 from .brdf import ambient_response, gltf_brdf
 from .frame import FrameGeometry, SurfaceMaps
-from .texels import texel
+from .texels import lookup
 
 
-def emission_scale(maps: SurfaceMaps, surf, hit) -> mi.Color3f:
-    """The emissive texture's value (1 where an object has none)."""
-    has, (r, g, b) = texel(maps.emit_tex, maps.emit_data, surf.obj, surf.uv, 3, hit)
+def emission_scale(maps: SurfaceMaps, surf, hit, mips=None) -> mi.Color3f:
+    """The emissive texture's value (1 where an object has none); `mips`: its filtered textures."""
+    has, (r, g, b) = lookup(maps.emit_tex, maps.emit_data, mips, surf.obj, surf.uv, 3, hit, surf.foot)
     return dr.select(has, mi.Color3f(r, g, b), mi.Color3f(1.0))
 
 
@@ -46,7 +46,8 @@ def _vertex_tangent(geo: FrameGeometry, maps: SurfaceMaps, face, p, active):
 
 def mapped_normal(geo: FrameGeometry, maps: SurfaceMaps, surf, n: mi.Vector3f, flip, hit) -> mi.Vector3f:
     """The shading normal n (already facing the viewer) bent by the object's normal map."""
-    has, (x, y, z) = texel(maps.normal_tex, maps.normal_data, surf.obj, surf.uv, 3, hit)
+    has, (x, y, z) = lookup(maps.normal_tex, maps.normal_data, geo.mips.get("normal_map"), surf.obj, surf.uv, 3,
+                            hit, surf.foot)
     scale = dr.gather(mi.Float, maps.normal_scale, surf.obj, has)
     face = dr.gather(mi.UInt32, maps.face_base, surf.obj, has) + surf.prim
     tw = [dr.gather(mi.Float, maps.tangents, face * 4 + k, has) for k in range(4)]
@@ -79,14 +80,15 @@ def shade_maps(geo: FrameGeometry, surf, view: mi.Vector3f, hit, base: mi.Color3
     metallic = dr.gather(mi.Float, maps.metallic, obj, hit)
     rough = dr.gather(mi.Float, maps.roughness, obj, hit)
     if maps.has_mr:
-        has, (_, g, b) = texel(maps.mr_tex, maps.mr_data, obj, surf.uv, 3, hit)
+        has, (_, g, b) = lookup(maps.mr_tex, maps.mr_data, geo.mips.get("metallic_roughness"), obj, surf.uv, 3,
+                                hit, surf.foot)
         rough = dr.select(has, rough * g, rough)
         metallic = dr.select(has, metallic * b, metallic)
     n = mapped_normal(geo, maps, surf, n_sh, flip, hit) if maps.has_normal else n_sh
     v = dr.normalize(-view)
     occ = mi.Float(1.0)
     if maps.has_occlusion:
-        has, (o,) = texel(maps.occ_tex, maps.occ_data, obj, surf.uv, 1, hit)
+        has, (o,) = lookup(maps.occ_tex, maps.occ_data, geo.mips.get("occlusion"), obj, surf.uv, 1, hit, surf.foot)
         strength = dr.gather(mi.Float, maps.occ_strength, obj, has)
         occ = dr.select(has, 1.0 + strength * (o - 1.0), 1.0)
     amb = ambient * occ * dr.select(model, ambient_response(dr.dot(n, v), base, metallic, rough), base)

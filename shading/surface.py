@@ -8,7 +8,8 @@ A material's emission is added to the result in every mode. A scene that declare
 Mitsuba's multi-bounce path tracer as its reference (references/mitsuba_scene.py); its raster
 frames are shaded as direct_shadows, and the gap between the two is reported, not hidden.
 Directional lights give E = intensity; point lights E = intensity / d^2. Surfaces are two-sided:
-normals are turned to face the viewer. Textures use nearest-texel lookup with wrap-around.
+normals are turned to face the viewer. Textures use nearest-texel lookup with wrap-around, or
+the filter they declare (shading/texels.py, docs/method.md "Texture filtering").
 Materials beyond Lambert (the glTF metallic-roughness model, normal, occlusion and emissive maps)
 are shaded by shading/material.py, traced only in scenes that have them, so a Lambert scene's
 kernel is the one above.
@@ -24,6 +25,7 @@ from scenes.description import DirectionalLight
 
 from . import material
 from .frame import FrameGeometry
+from .texels import lookup as _lookup
 from .texels import texel as _texel
 
 MAX_ALPHA_LAYERS = 8   # cut-out surfaces skipped along one ray before giving up (counted as a miss)
@@ -37,11 +39,15 @@ class Surface:
     n_sh: mi.Vector3f      # unit shading normal (interpolated for smooth objects)
     uv: mi.Point2f
     prim: mi.UInt32 | None = None   # triangle index within the object, where known
+    # the raster's ((du/dx, dv/dx, du/dy, dv/dy), lod_bias) for trilinear textures; None: the base
+    # level (the reference, which integrates over the pixel by sampling it)
+    foot: tuple | None = None
 
 
-def albedo_at(geo: FrameGeometry, obj, uv, active=True) -> mi.Color3f:
+def albedo_at(geo: FrameGeometry, obj, uv, active=True, foot=None) -> mi.Color3f:
+    """Albedo times the object's texture, looked up with its filter (`foot`: Surface.foot)."""
     base = dr.gather(mi.Color3f, geo.obj_albedo, obj, active)
-    has, (r, g, b) = _texel(geo.obj_tex, geo.tex_data, obj, uv, 3, active)
+    has, (r, g, b) = _lookup(geo.obj_tex, geo.tex_data, geo.mips.get("texture"), obj, uv, 3, active, foot)
     return dr.select(has, base * mi.Color3f(r, g, b), base)
 
 
@@ -123,7 +129,7 @@ def shade(geo: FrameGeometry, surf: Surface, eye: np.ndarray, active=True,
     mask = mi.UInt32(0)
     desc = geo.scene.desc
     hit = mi.Bool(active) & (surf.obj > 0)
-    albedo = albedo_at(geo, surf.obj, surf.uv, hit)
+    albedo = albedo_at(geo, surf.obj, surf.uv, hit, surf.foot)
     if desc.transport == "unlit":
         colour = albedo
     else:
@@ -144,7 +150,7 @@ def shade(geo: FrameGeometry, surf: Surface, eye: np.ndarray, active=True,
     if geo.has_emission:
         emission = dr.gather(mi.Color3f, geo.obj_emission, surf.obj, hit)
         if geo.maps is not None and geo.maps.has_emit_tex:
-            emission *= material.emission_scale(geo.maps, surf, hit)
+            emission *= material.emission_scale(geo.maps, surf, hit, geo.mips.get("emission_texture"))
         colour += emission
     if light_mask is not None:
         light_mask.append(dr.select(hit, mask, 0))

@@ -13,6 +13,11 @@
   was rendered to (0.5 LSB by default); the bound, the 99.9th percentile and max SE are reported.
 - something to see: at least one pixel centre hits an object in both renderers. A frame of
   background only (a camera looking away, or a broken camera) agrees perfectly and proves nothing.
+
+Filtered textures (docs/method.md, "Texture filtering"): the raster here samples every bilinear
+or trilinear texture on its base level, bilinearly (Rasterizer(mipmaps=False)), the function the
+reference integrates; a mip level is a prefilter the reference does not have, so comparing it would
+measure the filter, not whether the two renderers agree. The study's columns use the mip chain.
 """
 from __future__ import annotations
 
@@ -105,7 +110,7 @@ def check_agreement(scene: ResolvedScene, width: int, height: int, *, frame: int
     by default the reference's own."""
     import time
     cache = cache or ReferenceCache()
-    raster = Rasterizer(scene, width, height)
+    raster = Rasterizer(scene, width, height, mipmaps=False)   # the module notes: the base level
     try:
         t0 = time.perf_counter()
         acc = np.zeros((height, width, 3), np.float64)
