@@ -84,6 +84,14 @@ def mip_table(textures, filters, channels: int) -> MipTable | None:
                     mi.Float(np.concatenate(data)))
 
 
+def has_trilinear(scene) -> bool:
+    """True where some object's texture of any role is trilinear: its raster frames depend on the
+    LOD bias (a nearest or bilinear scene's do not)."""
+    roles = ("texture", "metallic_roughness", "normal_map", "emission_texture", "occlusion")
+    return any(getattr(getattr(o.material, r), "filter", "nearest") == "trilinear"
+               for o in scene.desc.objects for r in roles)
+
+
 def lod(duv_dx, duv_dy, width: int, height: int, bias: float = 0.0) -> float:
     """The level of detail OpenGL's isotropic rule gives (OpenGL 4.6, section 8.14.1): log2 of the
     longer of the pixel's two UV steps in base-level texels, plus `bias` (NumPy, one pixel; the

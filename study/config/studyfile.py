@@ -18,6 +18,9 @@ such files (study/config/profiles/*.toml).
     [[techniques]]
     spec = "FSR 2=fsr2"                              # an upscaler (taa_impl.upscale): one column per
     render_scale = [0.5, 1.0]                        #   scale, 'FSR 2 ×0.5' ...; default: the study's
+    lod_bias = -1.5                                  # filtered textures' LOD bias for this column; default:
+                                                     #   log2(render / display) - 1 for upscalers, else 0;
+                                                     #   at least the study's min_lod_bias (default -4)
 
     [protocols.static]
     history = 256                                    # frames of history of the run
@@ -66,7 +69,7 @@ from . import defaults as D
 from .precision import Precision
 from .profile import Profile
 from .protocols import Protocol
-from .techniques import TechniqueConfig, at_scales, upsamples
+from .techniques import TechniqueConfig, at_scales, lod_bias, upsamples
 from .video import Video
 
 PROFILE_DIR = Path(__file__).resolve().parent / "profiles"
@@ -86,6 +89,7 @@ class TechniqueEntry(_Model):
     params: dict[str, Any] = Field(default_factory=dict)
     spec: str | None = None
     render_scale: Union[float, list[float], None] = None     # an upscaler's scales (else the study's)
+    lod_bias: float | None = None          # texture LOD bias of the column (techniques.lod_bias)
 
     def config(self, base: Path) -> TechniqueConfig:
         if (self.spec is None) == (self.technique is None):
@@ -106,6 +110,8 @@ class TechniqueEntry(_Model):
         if self.technique is not None:
             c = TechniqueConfig(self.label or c.label, c.name,
                                 tuple((k, tuple(v) if isinstance(v, list) else v) for k, v in self.params.items()))
+        if self.lod_bias is not None:
+            c = TechniqueConfig(c.label, c.name, c.overrides, float(self.lod_bias))
         return c
 
 
@@ -181,6 +187,9 @@ class StudyModel(_Model):
     precision: PrecisionEntry = Field(default_factory=PrecisionEntry)
     video: VideoEntry = Field(default_factory=VideoEntry)
     render_scale: list[float] = Field(default_factory=list)
+    # the most negative texture LOD bias a column may use (explicit or by the upscalers' rule):
+    # below it a minified texture aliases as much as an unfiltered one
+    min_lod_bias: float = Field(-4.0, le=0)
     sharpen_sweep: list[float] = Field(default_factory=list)
     sharpen_sweep_scenes: list[str] = Field(default_factory=lambda: list(D.SHARPEN_SWEEP_SCENES))
 
@@ -255,6 +264,11 @@ def load_study(path: str | Path) -> Profile:
                 sc.make()
         except (ValueError, TypeError, KeyError) as exc:
             fail(f"techniques[{i}]", t.spec or t.technique, str(exc))
+        for sc in scaled:
+            bias = lod_bias(sc)
+            if bias < m.min_lod_bias:
+                how = "" if sc.lod_bias is not None else f" (the upscalers' rule log2(render_scale) - 1 for {sc.label!r})"
+                fail(f"techniques[{i}].lod_bias", bias, f"more negative than min_lod_bias = {m.min_lod_bias:g}{how}")
         configs.extend(scaled)
     if not configs:     # no techniques (or []): the default set, the built-in profile's
         default = PROFILE_DIR / f"{D.DEFAULT_TECHNIQUES_PROFILE}.toml"

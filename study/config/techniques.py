@@ -11,6 +11,7 @@ import dataclasses
 import hashlib
 import importlib.util
 import json
+import math
 import sys
 from dataclasses import dataclass
 from functools import lru_cache
@@ -20,10 +21,12 @@ from pathlib import Path
 
 @dataclass(frozen=True)
 class TechniqueConfig:
-    """A technique as a study names it: a column label, a registry name and parameter overrides."""
+    """A technique as a study names it: a column label, a registry name and parameter overrides;
+    `lod_bias`: the raster's texture LOD bias for this column (None: `lod_bias`'s default rule)."""
     label: str
     name: str
     overrides: tuple = ()          # ((field, value), ...) so the config is hashable
+    lod_bias: float | None = None
 
     def make(self):
         return resolve_technique(self.name)(**dict(self.overrides))
@@ -40,7 +43,10 @@ class TechniqueConfig:
         class whose code (and, transitively, the code it uses) produced it (see provenance)."""
         tech = self.make()
         params = dataclasses.asdict(tech.params) if dataclasses.is_dataclass(tech.params) else repr(tech.params)
-        return {"name": self.name, "params": params, "class": f"{type(tech).__module__}.{type(tech).__qualname__}"}
+        out = {"name": self.name, "params": params, "class": f"{type(tech).__module__}.{type(tech).__qualname__}"}
+        if self.lod_bias is not None:    # the default rule is code the run's key already names (drive)
+            out["lod_bias"] = float(self.lod_bias)
+        return out
 
     def code(self) -> type:
         return type(self.make())
@@ -92,8 +98,18 @@ def at_scales(c: TechniqueConfig, scales) -> list[TechniqueConfig]:
     overrides set render_scale, or that does not upsample, stays as it is."""
     if not scales or not upsamples(c) or any(k == "render_scale" for k, _ in c.overrides):
         return [c]
-    return [TechniqueConfig(f"{c.label} ×{float(s):g}", c.name, (*c.overrides, ("render_scale", float(s))))
-            for s in scales]
+    return [TechniqueConfig(f"{c.label} ×{float(s):g}", c.name, (*c.overrides, ("render_scale", float(s))),
+                            c.lod_bias) for s in scales]
+
+
+def lod_bias(c: TechniqueConfig) -> float:
+    """The texture LOD bias of a column's raster frames (docs/method.md, "Texture filtering"): its
+    own, else log2(render / display) - 1 for an upscaler (FSR 2's documented rule: the textures
+    of the output's resolution, and one level sharper for the detail accumulated over frames), and
+    0 for every other technique (a TAA at native resolution samples as the scene was authored)."""
+    if c.lod_bias is not None:
+        return float(c.lod_bias)
+    return math.log2(render_scale(c)) - 1.0 if upsamples(c) else 0.0
 
 
 def family(c: TechniqueConfig) -> str:

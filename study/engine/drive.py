@@ -2,6 +2,8 @@
 
 Each distinct raster frame (study.config.protocols.frame_key) is rendered once and reused while
 its scene time lasts; a supersampling technique's sub-frames are not shared with later steps.
+Columns share frames of one render size; in a scene with trilinear textures, only columns of one
+texture LOD bias (study.config.techniques.lod_bias) do, since the bias changes those frames.
 """
 from __future__ import annotations
 
@@ -21,7 +23,9 @@ from scenes.jitter import halton_offsets
 from taa_impl import sanitize
 from taa_impl.contract import Frame, render_size
 
+from shading.mips import has_trilinear
 from study.config.protocols import Step, frame_key, judged_steps, step_jitters
+from study.config.techniques import lod_bias
 
 
 class TechniqueError(ValueError):
@@ -79,19 +83,22 @@ def _shared(a: np.ndarray) -> np.ndarray:
 
 class FrameSource:
     """Raster frames of one scene, each distinct (time, jitter, previous time) rendered once.
-    `aspect`: the output's frustum, for a render below the output's size (an upscaler's)."""
+    `aspect`: the output's frustum, for a render below the output's size (an upscaler's).
+    `lod_bias`: the filtered textures' LOD bias (raster.Rasterizer)."""
 
-    def __init__(self, scene: ResolvedScene, width: int, height: int, buffers, aspect: float | None = None):
-        self.raster = Rasterizer(scene, width, height, aspect)
+    def __init__(self, scene: ResolvedScene, width: int, height: int, buffers, aspect: float | None = None,
+                 lod_bias: float = 0.0):
+        self.raster = Rasterizer(scene, width, height, aspect, lod_bias=lod_bias)
         self.buffers = tuple(sorted(set(buffers) | {"color"}))
         self._memo: dict = {}
         self.rendered = 0
 
     @classmethod
-    def for_output(cls, scene: ResolvedScene, width: int, height: int, scale: float, buffers) -> "FrameSource":
+    def for_output(cls, scene: ResolvedScene, width: int, height: int, scale: float, buffers,
+                   lod_bias: float = 0.0) -> "FrameSource":
         """The frames a technique of render `scale` reads for a width x height output."""
         size = render_size(width, height, scale)
-        return cls(scene, *size, buffers, None if size == (width, height) else width / height)
+        return cls(scene, *size, buffers, None if size == (width, height) else width / height, lod_bias)
 
     def frame(self, t: int, jitter, prev_t: int) -> dict:
         key = frame_key(t, jitter, prev_t)
@@ -149,15 +156,17 @@ def run_schedule(scene: ResolvedScene, width: int, height: int, schedule: list[S
     judged = {label: {s.frame for s in judged_steps(schedule, t.inputs.sampling)} for label, t in techs.items()}
     out = {label: {"images": {}, "output_space": t.output_space, "nonfinite": 0, "stats": {}}
            for label, t in techs.items()}
-    sizes = {label: render_size(width, height, t.inputs.render_scale) for label, t in techs.items()}
-    srcs: dict[tuple, FrameSource] = {}     # one per render size: upscalers render below the output
+    biased = has_trilinear(scene)          # else the bias changes no frame, and every size is shared
+    sizes = {c.label: (render_size(width, height, techs[c.label].inputs.render_scale),
+                       lod_bias(c) if biased else 0.0) for c in configs}
+    srcs: dict[tuple, FrameSource] = {}     # one per render size (and bias): upscalers render below the output
     last_t = None
     try:
         for label, size in sizes.items():
             if size not in srcs:
                 users = [techs[l].inputs.buffers for l in techs if sizes[l] == size]
                 srcs[size] = FrameSource.for_output(scene, width, height, techs[label].inputs.render_scale,
-                                                    set().union(*users))
+                                                    set().union(*users), lod_bias=size[1])
         for step in tqdm(schedule, desc=desc or scene.name, unit="frame", disable=not progress,
                          leave=False, mininterval=1.0):
             if last_t is not None and step.t != last_t:
