@@ -102,6 +102,8 @@ class Texture(_Strict):
         if self.kind == "array":
             if self.data is None or self.data.ndim not in (2, 3):
                 raise ValueError("kind 'array' needs 'data' of shape (H, W) or (H, W, 3)")
+            if self.data.size == 0:
+                raise ValueError(f"texture data is empty (shape {self.data.shape})")
             if not np.all(np.isfinite(self.data)):
                 raise ValueError("texture data contains NaN or Inf")
         return self

@@ -54,7 +54,18 @@ def build_texture(tex: Texture, where: str, base_dir: str | None, srgb: bool = T
     if not os.path.isfile(full):
         raise SceneError(f"{where}: texture file not found: {full}")
     try:
-        img = np.asarray(Image.open(full).convert("RGB"), np.float32) / 255.0
+        with Image.open(full) as raw:
+            raw.load()
+            # a float image (TIFF mode F) would turn NaN/Inf into arbitrary 8-bit values
+            if raw.mode.startswith(("F", "I")):
+                bad = ~np.isfinite(np.asarray(raw, np.float64))
+                if bad.any():
+                    r, c = np.argwhere(bad)[0]
+                    raise SceneError(f"{where}: texture {full} has {int(bad.sum())} NaN/Inf texel(s) "
+                                     f"(first at row {r}, column {c})")
+            img = np.asarray(raw.convert("RGB"), np.float32) / 255.0
+    except SceneError:
+        raise
     except Exception as exc:
         raise SceneError(f"{where}: cannot read texture {full}: {exc}") from exc
     # Row 0 of our textures is v = 0 (bottom of the image as usually authored).
