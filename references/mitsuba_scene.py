@@ -54,9 +54,10 @@ def path_integrator(max_depth: int = 8):
     return mi.load_dict({"type": "path", "max_depth": max_depth, "hide_emitters": True})
 
 
-def _texture(data: np.ndarray):
+def _texture(data: np.ndarray, filt: str = "nearest"):
+    # a bilinear or trilinear texture is its base level, bilinearly, as in every reference
     return {"type": "bitmap", "bitmap": mi.Bitmap(np.ascontiguousarray(data, np.float32)),
-            "filter_type": "nearest", "wrap_mode": "repeat", "raw": True}
+            "filter_type": "nearest" if filt == "nearest" else "bilinear", "wrap_mode": "repeat", "raw": True}
 
 
 def path_scene(scene: ResolvedScene, t: int):
@@ -72,7 +73,7 @@ def path_scene(scene: ResolvedScene, t: int):
         mat = obj.material
         refl = {"type": "rgb", "value": list(mat.albedo)}
         if scene.textures[i] is not None:
-            refl = _texture(scene.textures[i] * np.asarray(mat.albedo, np.float32))
+            refl = _texture(scene.textures[i] * np.asarray(mat.albedo, np.float32), mat.texture.filter)
         bsdf = {"type": "twosided", "bsdf": {"type": "diffuse", "reflectance": refl}}
         if scene.alphas[i] is not None:
             keep = (scene.alphas[i] >= mat.alpha_threshold).astype(np.float32)

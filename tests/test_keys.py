@@ -128,6 +128,7 @@ REKEYS = {
     "study/engine/drive.py": {"run", "cost"},         # costs time the driver's steps
     "study/engine/run_task.py": {"run"},
     "study/config/protocols.py": {"run", "cost"},    # the schedules' steps and the raster frames they need
+    "study/config/lod.py": {"run", "cost"},          # the texture LOD bias of a column's raster frames
     "study/engine/tasks.py": {"run", "metrics", "agreement"},   # the task contract: errors, setup
     "study/engine/agreement.py": {"agreement"},
     "study/engine/costs.py": {"cost"},

@@ -11,11 +11,12 @@ import dataclasses
 import hashlib
 import importlib.util
 import json
-import math
 import sys
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
+
+from .lod import lod_bias as _lod_bias
 
 
 
@@ -103,13 +104,9 @@ def at_scales(c: TechniqueConfig, scales) -> list[TechniqueConfig]:
 
 
 def lod_bias(c: TechniqueConfig) -> float:
-    """The texture LOD bias of a column's raster frames (docs/method.md, "Texture filtering"): its
-    own, else log2(render / display) - 1 for an upscaler (FSR 2's documented rule: the textures
-    of the output's resolution, and one level sharper for the detail accumulated over frames), and
-    0 for every other technique (a TAA at native resolution samples as the scene was authored)."""
-    if c.lod_bias is not None:
-        return float(c.lod_bias)
-    return math.log2(render_scale(c)) - 1.0 if upsamples(c) else 0.0
+    """The texture LOD bias of a column's raster frames (study.config.lod: its own, else FSR 2's
+    rule log2(render / display) - 1 for an upscaler, 0 for the rest)."""
+    return _lod_bias(c.lod_bias, c.make().inputs)
 
 
 def family(c: TechniqueConfig) -> str:

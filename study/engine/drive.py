@@ -3,7 +3,7 @@
 Each distinct raster frame (study.config.protocols.frame_key) is rendered once and reused while
 its scene time lasts; a supersampling technique's sub-frames are not shared with later steps.
 Columns share frames of one render size; in a scene with trilinear textures, only columns of one
-texture LOD bias (study.config.techniques.lod_bias) do, since the bias changes those frames.
+texture LOD bias (study.config.lod) do, since the bias changes those frames.
 """
 from __future__ import annotations
 
@@ -25,7 +25,7 @@ from taa_impl.contract import Frame, render_size
 
 from shading.mips import has_trilinear
 from study.config.protocols import Step, frame_key, judged_steps, step_jitters
-from study.config.techniques import lod_bias
+from study.config.lod import lod_bias
 
 
 class TechniqueError(ValueError):
@@ -158,7 +158,7 @@ def run_schedule(scene: ResolvedScene, width: int, height: int, schedule: list[S
            for label, t in techs.items()}
     biased = has_trilinear(scene)          # else the bias changes no frame, and every size is shared
     sizes = {c.label: (render_size(width, height, techs[c.label].inputs.render_scale),
-                       lod_bias(c) if biased else 0.0) for c in configs}
+                       lod_bias(getattr(c, "lod_bias", None), techs[c.label].inputs) if biased else 0.0) for c in configs}
     srcs: dict[tuple, FrameSource] = {}     # one per render size (and bias): upscalers render below the output
     last_t = None
     try:

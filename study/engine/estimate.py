@@ -40,6 +40,8 @@ def _get(out: dict, spec: str, scene, w: int, h: int) -> SceneWork:
 
 def work(plan, cache=None) -> dict[str, SceneWork]:
     """Per scene, the units the plan's tasks will compute (a reference `cache` holds is no work)."""
+    from shading.mips import has_trilinear
+    from study.config.techniques import lod_bias
     from study.engine.tasks import load_scene
     out: dict[str, SceneWork] = {}
     for task in plan.tasks.values():
@@ -56,7 +58,8 @@ def work(plan, cache=None) -> dict[str, SceneWork]:
             scene = load_scene(spec)
             sw = _get(out, spec, scene, w, h)
             schedule = s.protocol.schedule(scene)
-            frames = set()      # as study.engine.drive.FrameSource memoises them (one per render size)
+            frames = set()      # as study.engine.drive.FrameSource memoises them (one per render size,
+            biased = has_trilinear(scene)   # and LOD bias where a texture is trilinear)
             for c in s.configs:
                 inp = c.make().inputs
                 sw.configs[c.label] = c
@@ -64,7 +67,8 @@ def work(plan, cache=None) -> dict[str, SceneWork]:
                 sw.steps[c.label] = sw.steps.get(c.label, 0) + len(steps)
                 if inp.sampling in ("sequence", "centre"):
                     size = render_size(w, h, inp.render_scale)
-                    frames |= {(size, *frame_key(s.t, j, s.prev_t)) for s in steps
+                    bias = lod_bias(c) if biased else 0.0
+                    frames |= {(size, *frame_key(s.t, j, s.prev_t), bias) for s in steps
                                for j in step_jitters(s, inp.sampling, period=inp.jitter_period)}
                 else:
                     sw.subframes[c.label] = sw.subframes.get(c.label, 0) + len(steps) * inp.subframes
