@@ -19,7 +19,10 @@ settings) where no moving object nor its shadow reaches: its key then hashes fra
 (`reuse_from`, itself chained back to frame `reuse_since`, the last frame rendered whole), so no
 reference is ever read for a chain it was not derived from; each pixel's smallest and largest
 sample (`sample_lo.R/G/B`, `sample_hi.R/G/B`: what the next frame's unseen-feature floor reads)
-and which pixels were kept (`reused`) are stored with it.
+and which pixels were kept (`reused`) are stored with it. Only then: nothing else reads the
+extremes, and they are the noisiest channels (29 % of a noisy scene's file, sphere_ghosting at
+320x180); a reference first rendered without reuse is no source for the next frame, which is then
+rendered whole and starts the chain.
 """
 from __future__ import annotations
 
@@ -124,7 +127,7 @@ class ReferenceCache:
             path.unlink(missing_ok=True)
             return None
 
-    def _write(self, path: Path, ref: Reference, scene: ResolvedScene, t: int) -> None:
+    def _write(self, path: Path, ref: Reference, scene: ResolvedScene, t: int, extremes: bool = True) -> None:
         header = {"taa_key": ref.key, "taa_scene": scene.name, "taa_scene_hash": scene.content_hash,
                   "taa_frame": int(t), "taa_spp": int(ref.spp), "taa_passes": int(ref.passes),
                   "taa_rounds": int(ref.rounds), "taa_seconds": float(ref.seconds),
@@ -143,7 +146,7 @@ class ReferenceCache:
             chans[f"display_stderr.{c}"] = ref.display_stderr[..., k]
             chans[f"display_floor.{c}"] = ref.display_floor[..., k]
             chans[f"half_delta.{c}"] = ref.half_delta[..., k]
-            if ref.sample_lo is not None:
+            if ref.sample_lo is not None and extremes:      # a source of the next frame's reuse
                 chans[f"sample_lo.{c}"], chans[f"sample_hi.{c}"] = ref.sample_lo[..., k], ref.sample_hi[..., k]
         if ref.reused is not None:
             chans["reused"] = ref.reused.astype(np.float32)
@@ -180,5 +183,5 @@ class ReferenceCache:
                                target_noise_db=target_noise_db, spp_per_pass=spp_per_pass, held_out=bool(held_out),
                                progress=progress, reuse_from=prev)
         ref.key = key
-        self._write(path, ref, scene, t)
+        self._write(path, ref, scene, t, extremes=bool(reuse))
         return ref, False

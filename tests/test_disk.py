@@ -1,6 +1,7 @@
 """The disk a study's plan needs, and the runs it keeps whole only while they fit (study.engine.disk)."""
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from study.engine import disk as D
@@ -28,12 +29,100 @@ def test_fit_keeps_the_cheapest_runs_whole_while_they_fit_and_prunes_the_rest():
         D.fit(need, floor - GB, True, Path("/c"), log=logs.append)
 
 
+EDGES = np.array([0.0, -0.0, 1.0, -1.0, np.nextafter(np.float32(1), np.float32(2)), 1e-45, -1e-45,
+                  np.finfo(np.float32).tiny, np.finfo(np.float32).smallest_subnormal * 3, np.finfo(np.float32).max,
+                  -np.finfo(np.float32).max, np.finfo(np.float32).eps, 65504.0, 65505.0, 6e-8, 3.1e38], np.float32)
+
+
+def _same_bits(a, b):
+    return np.array_equal(np.ascontiguousarray(a, np.float32).view(np.uint32),
+                          np.ascontiguousarray(b, np.float32).view(np.uint32))
+
+
+def test_kept_files_round_trip_bit_for_bit_in_each_lossless_codec(tmp_path):
+    """Every codec a kept file is written with returns each float32 bit for bit: the edge values
+    (signed zeros, subnormals, the largest floats, halves' overflow) and noise; a codec that is not
+    lossless is refused by name."""
+    from references.exr import ExrError, read_exr, write_exr
+    from study.engine.store import Store, codec
+    rng = np.random.default_rng(3)
+    noise = (rng.standard_normal((27, 48, 3)) * rng.lognormal(0, 8, (27, 48, 3))).astype(np.float32)
+    noise.reshape(-1)[:EDGES.size] = EDGES
+    for name in ("zip", "zstd"):
+        write_exr(tmp_path / f"{name}.exr", {"RGB": noise, "flip_ldr": noise[..., 0]}, compression=name)
+        _, ch = read_exr(tmp_path / f"{name}.exr")
+        assert all(_same_bits(ch[c], noise[..., k]) for k, c in enumerate("RGB")) and _same_bits(ch["flip_ldr"], noise[..., 0])
+    with pytest.raises(ExrError, match=r"bad\.exr: compression must be one of \['zip', 'zstd'\] .*'pxr24'"):
+        write_exr(tmp_path / "bad.exr", {"RGB": noise}, compression="pxr24")
+    assert not (tmp_path / "bad.exr").exists()
+    # a folder's maps are Zstandard, its frames ZIP; both read back as written, and maps are smaller
+    assert (codec("maps_0016.exr"), codec("frame_0016.exr")) == ("zstd", "zip")
+    st = Store(tmp_path / "c")
+    smooth = np.linspace(0, 1, 48 * 27, dtype=np.float32).reshape(27, 48) ** 2.2
+    rec = st.save_folder(tmp_path / "c" / "f", "k", {"maps_0001.exr": {"ssim": smooth, "flip_ldr": noise[..., 1]},
+                                                      "frame_0001.exr": noise}, {})
+    got = st.read_image(tmp_path / "c" / "f", "maps_0001.exr", rec)
+    assert _same_bits(got["ssim"], smooth) and _same_bits(got["flip_ldr"], noise[..., 1])
+    assert _same_bits(np.stack([st.read_image(tmp_path / "c" / "f", "frame_0001.exr", rec)[c] for c in "RGB"], -1), noise)
+
+
+def test_a_cached_reference_keeps_its_halves_bit_for_bit_and_its_extremes_only_for_reuse(tmp_path):
+    """The reference cache stores the image, standard errors, floor and halves exactly; a
+    reference's sample extremes (what the next frame's reuse reads, nothing else) only when
+    rendered for reuse: 6 of 22 channels, the noisiest."""
+    from types import SimpleNamespace
+
+    from references.cache import ReferenceCache
+    from references.exr import read_exr
+    from references.result import Reference
+    rng = np.random.default_rng(5)
+
+    def img():
+        x = rng.lognormal(0, 3, (27, 48, 3)).astype(np.float32)
+        x.reshape(-1)[:EDGES.size] = np.abs(EDGES)
+        return x
+    ref = Reference(img(), img(), 64, 2, 1.5, 61.0, "k" * 24, spp_map=rng.integers(2, 4096, (27, 48)).astype(np.int32),
+                    display_stderr=np.minimum(img(), 1), display_floor=np.minimum(img(), 1), half_delta=img() - img(), sample_lo=img(), sample_hi=img())
+    cache = ReferenceCache(tmp_path)
+    scene = SimpleNamespace(name="s", content_hash="h")
+    for reuse in (False, True):
+        path = tmp_path / f"{reuse}.exr"
+        cache._write(path, ref, scene, 0, extremes=reuse)
+        back = cache._read(path, ref.key, (27, 48, 3))
+        for f in ("image", "stderr", "display_stderr", "display_floor", "half_delta"):
+            assert _same_bits(getattr(back, f), getattr(ref, f)), f
+        for half, want in zip(back.halves(), ref.halves()):
+            assert _same_bits(half, want)
+        assert np.array_equal(back.spp_map, ref.spp_map)
+        assert ("sample_lo.R" in read_exr(path)[1]) is reuse
+        assert (back.sample_lo is not None) is reuse
+        if reuse:
+            assert _same_bits(back.sample_lo, ref.sample_lo) and _same_bits(back.sample_hi, ref.sample_hi)
+
+
+def _real_bytes(root):
+    """(bytes on disk, what study.engine.disk.file_bytes allows) of each kind of file under a cache."""
+    from references.exr import read_exr
+    out = {}
+    for kind, glob in (("reference", "references/**/*.exr"), ("frame", "runs/**/frame_*.exr"),
+                       ("maps", "metrics/**/maps_*.exr")):
+        real = allowed = 0
+        for f in Path(root).glob(glob):
+            ch = read_exr(f)[1]
+            h, w = next(iter(ch.values())).shape[:2]
+            real += f.stat().st_size
+            allowed += D.file_bytes(kind, w, h, "sample_lo.R" in ch)
+        out[kind] = (real, allowed)
+    return out
+
+
 def _study(root, scenes, **kw):
     from study.config.profile import get_profile
     from study.config.techniques import TechniqueConfig
     from study.engine.runner import Study
+    from dataclasses import replace
     logs = []
-    s = Study(get_profile("quick"), cache_root=root, progress=False, log=logs.append)
+    s = Study(replace(get_profile("quick"), **kw), cache_root=root, progress=False, log=logs.append)
     configs = [TechniqueConfig.parse(x) for x in ("taa_baseline", "noaa")]
     return s, configs, logs
 
@@ -47,6 +136,9 @@ def test_a_study_short_of_disk_prunes_its_largest_runs_and_makes_them_again_with
     scenes = write_scenes(tmp_path)
     s, configs, _ = _study(tmp_path / "roomy", scenes)
     roomy = s.run(scenes, configs, agreement=False)
+    # the disk the estimate allows each file is no less than what the study's real files take
+    for kind, (real, allowed) in _real_bytes(tmp_path / "roomy").items():
+        assert 0 < real <= allowed, (kind, real, allowed)
     plan = s.plan(scenes, configs, agreement=False, final=False, prune=frozenset())[0]  # what a cold cache writes
     s2, _, _ = _study(tmp_path / "probe", scenes)
     need = D.needs(s2.plan(scenes, configs, agreement=False, final=False, prune=frozenset())[0])
@@ -67,6 +159,24 @@ def test_a_study_short_of_disk_prunes_its_largest_runs_and_makes_them_again_with
     # its runs were pruned once judged and made again for its finer references
     assert short.precision[big[0]][big[1]]["rounds"][1:], short.precision
     assert short.stats["runs_computed"] > roomy.stats["runs_computed"], (short.stats, roomy.stats)
+    # the profile's lean policy (the thesis's): every test's runs pruned once judged, whatever the disk,
+    # made again when refined; the same figures, and the report still reads every frame it shows
+    from study.engine.plan import shown_frames
+    from study.engine.results import Artefacts
+    s5, _, _ = _study(tmp_path / "lean", scenes, runs_while_refining="pruned")
+    lean = s5.run(scenes, configs, agreement=False)
+    for a, b in zip(roomy.statics + [g for gs in roomy.ghosts.values() for g in gs],
+                    lean.statics + [g for gs in lean.ghosts.values() for g in gs]):
+        assert a.per_frame == b.per_frame and a.uncertainty == b.uncertainty and a.temporal == b.temporal
+    assert lean.precision == roomy.precision
+    assert lean.stats["runs_computed"] > short.stats["runs_computed"], (lean.stats, short.stats)
+    art = Artefacts(tmp_path / "lean")
+    for res in lean.statics:
+        for a in res.artefacts.values():
+            assert all(art.frame(a, f).shape == (res.height, res.width, 3) for f in a["maps_for"])
+    for g in (g for gs in lean.ghosts.values() for g in gs):
+        for a in g.artefacts.values():
+            assert all(art.frame(a, t).shape == (g.height, g.width, 3) for t in shown_frames(g.frames))
     # nothing fits: a named error before any task (no reference rendered)
     monkeypatch.setattr(D, "free_bytes", lambda folder: floor - 1)
     s4, _, _ = _study(tmp_path / "full", scenes)

@@ -115,17 +115,9 @@ def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
         work = E.work(plan, None if from_scratch else study.cache)
         from study.engine import disk as D
         need = D.needs(plan)
-    gb = 2 ** 30
-    disk = {"references_gb": need["references"] / gb, "maps_gb": need["maps"] / gb,
-            "runs_whole_gb": sum(w for w, _ in need["tests"].values()) / gb,
-            "runs_kept_gb": sum(k for _, k in need["tests"].values()) / gb,
-            "free_gb": D.free_bytes(study.cache.root) / gb}
-    # the most the cache holds at once: every test's runs whole while its references refine, or, with
-    # the runs pruned once judged (study.engine.disk.fit, where the whole do not fit), the least
-    kept = need["references"] + need["maps"] + sum(k for _, k in need["tests"].values()) + D.IN_FLIGHT * need["run"]
-    disk["peak_gb"] = (need["references"] + need["maps"] + sum(w for w, _ in need["tests"].values())
-                       + D.margin(need)) / gb
-    disk["least_gb"] = (kept + D.margin(need)) / gb
+    # what the run plans for: the profile's policy (runs pruned once judged, or whole while they refine)
+    pruned = prof.runs_while_refining == "pruned" or study.precision.rule != "figures"
+    disk = D.summary(need, D.free_bytes(study.cache.root), pruned)
     rows, totals = [], {}
     for name, sw in work.items():
         row = {"scene": name, "resolution": [sw.width, sw.height], "references": sw.references,
@@ -157,12 +149,9 @@ def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
         click.echo(_strict_json(doc))
         return
     click.echo(f"{prof.name}: tasks to compute {plan.counts() or 'none'}, {len(plan.cached)} complete")
-    click.echo(f"disk: references {disk['references_gb']:.1f} GB, runs {disk['runs_whole_gb']:.1f} GB whole while "
-               f"their tests refine ({disk['runs_kept_gb']:.1f} GB once pruned to the frames the report reads), "
-               f"maps {disk['maps_gb']:.1f} GB; {disk['free_gb']:.1f} GB free in the cache's disk (study.engine.disk)")
-    click.echo(f"disk at its peak: {disk['peak_gb']:.1f} GB with every test's runs whole, at least "
-               f"{disk['least_gb']:.1f} GB with runs pruned once judged (a test refined again then remakes "
-               f"its runs), each with its margin")
+    remake = sum(r["seconds"]["raster"] + r["seconds"]["resolve"] for r in rows) if measure else None
+    for line in D.describe(disk, remake):
+        click.echo(line)
     mem = doc["memory"]
     click.echo(f"memory: about {mem['per_process_gb']:.1f} GB per rendering process at the largest size "
                f"({mem['width']}x{mem['height']}, scene {mem['scene']}), {mem['processes']} at once by default: "

@@ -72,6 +72,9 @@ class Profile:
     sharpen_sweep_scenes: tuple = D.SHARPEN_SWEEP_SCENES
     thesis_history: int = THESIS_HISTORY
     keep_frames: str = D.KEEP_FRAMES      # 'report': a run keeps, once judged, the frames the report reads; 'all'
+    # 'whole': a test's runs keep every judged frame while its references refine (as the disk allows,
+    # study.engine.disk.fit); 'pruned': pruned once judged, made again if the test is refined
+    runs_while_refining: str = "whole"
     source: str = ""
     precision: Precision = Precision()    # how precise its references must be (study.engine.precision)
     video: Video = Video()                # the perceptual video metric (study.metrics.video)

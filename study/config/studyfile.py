@@ -184,6 +184,7 @@ class StudyModel(_Model):
     protocols: ProtocolsEntry = Field(default_factory=ProtocolsEntry)
     reference: dict[str, Any] = Field(default_factory=lambda: dict(D.REFERENCE))
     keep_frames: Literal["report", "all"] = D.KEEP_FRAMES
+    runs_while_refining: Literal["whole", "pruned"] = "whole"
     precision: PrecisionEntry = Field(default_factory=PrecisionEntry)
     video: VideoEntry = Field(default_factory=VideoEntry)
     render_scale: list[float] = Field(default_factory=list)
@@ -311,7 +312,8 @@ def load_study(path: str | Path) -> Profile:
                    sweep_scenes=tuple(m.sweep_scenes), agreement_samples=m.agreement_samples,
                    scenes=tuple(scenes), techniques=tuple(configs), out=out, agreement=m.agreement,
                    sweep=m.sweep, sharpen_sweep=tuple(m.sharpen_sweep), sharpen_sweep_scenes=tuple(m.sharpen_sweep_scenes),
-                   thesis_history=st.thesis_history, keep_frames=m.keep_frames, source=str(path),
+                   thesis_history=st.thesis_history, keep_frames=m.keep_frames, runs_while_refining=m.runs_while_refining,
+                   source=str(path),
                    precision=Precision(**m.precision.model_dump()), video=Video(**m.video.model_dump()))
 
 

@@ -1,12 +1,16 @@
 """The disk a study's plan needs in the cache, and which tests' runs stay whole while they refine.
 
 Under the figures' rule a test's runs keep every judged frame until the test settles, so that a
-finer reference is judged without making the run again. At 1600x900 a judged frame is ~8.5 MB
-(float32 EXR, ZIP: about half raw) and the full profile judges ~19,000 of them: ~200 GB whole. Its
-first run filled this machine's disk after 75 minutes. The tests whose runs do not fit beside
-everything else the plan writes are pruned once judged instead (to the frames the report reads),
-and their runs are made again if their references are refined: time, not disk. A plan that cannot
-fit even so stops before computing anything, naming the folder and the sizes.
+finer reference is judged without making the run again. At 1600x900 a judged frame is ~10 MB
+(float32 EXR, ZIP) and the full profile judges ~19,000 of them: ~200 GB whole. Its first run
+filled this machine's disk after 75 minutes. The tests whose runs do not fit beside everything
+else the plan writes are pruned once judged instead (to the frames the report reads), and their
+runs are made again if their references are refined: time, not disk; a profile may ask for that
+of every test (`runs = "pruned"`, the thesis profile). A plan that cannot fit even so stops
+before computing anything, naming the folder and the sizes.
+
+Every file is lossless (a figure computed from it must not move): the sizes below are real
+files' (docs/performance.md, "Disk").
 """
 from __future__ import annotations
 
@@ -15,10 +19,15 @@ from pathlib import Path
 
 from study.engine.tasks import TaskError
 
-# bytes a pixel takes on disk, measured on the cache's 1600x900 files: a run's judged frame (RGB,
-# 5.9-6.4), a reference (its image, halves' difference, standard errors, floor and spp: 10-15.3),
-# a frame's maps (SSIM, FLIP LDR and HDR)
-FRAME_BYTES, REFERENCE_BYTES, MAPS_BYTES = 7, 16, 12
+# Bytes a pixel takes on disk, measured on real files (the references' ZIP, the maps' Zstandard):
+# a run's judged frame (RGB; 320x180: 1.07 B a channel over the quick study's 9358, the noisiest
+# 2.9; 1600x900: 5.9-6.4 B a pixel), a reference (image, standard errors, floor, halves'
+# difference, spp; 320x180: 20.2 B a pixel over the quick study's 385, hard_edges 9.9,
+# sphere_ghosting's noisy floor 41; 1600x900: 10-15.3), a reference's sample extremes, stored only
+# for reuse (references.cache: sphere_ghosting 17, hard_edges 1), a frame's maps (SSIM, FLIP LDR
+# and HDR; 320x180: 1.81 B a channel, Zstandard 0.85 of ZIP's 2.14; 1600x900: ZIP's 12 B x 0.85)
+FRAME_BYTES, REFERENCE_BYTES, EXTREMES_BYTES, MAPS_BYTES = 7, 24, 18, 11
+FILE_BYTES = 4096             # each file's header and offsets (a reference's header is ~1.8 KB)
 # left free for everything else (logs, the report, the OS): a quarter of what the plan keeps,
 # between 64 MB and 2 GB (a fixed 2 GB refused a 250 KB study on a small disk)
 MARGIN, MARGIN_MIN, MARGIN_SHARE = 2 * 2 ** 30, 64 * 2 ** 20, 0.25
@@ -33,8 +42,8 @@ def needs(plan) -> dict:
     """What the plan writes: {'references', 'maps': bytes, 'tests': (scene, protocol) -> (bytes
     of its new runs whole, bytes once pruned to their kept frames), 'run': the most one run's
     pruning frees}. A run two tests read counts once, for the first."""
-    refs = sum(t.spec.width * t.spec.height * REFERENCE_BYTES for t in plan.tasks.values()
-               if t.kind == "reference" and not t.likely_cached)
+    refs = sum(file_bytes("reference", t.spec.width, t.spec.height, bool(t.spec.settings.get("reuse")))
+               for t in plan.tasks.values() if t.kind == "reference" and not t.likely_cached)
     made = {k for t in plan.tasks.values() if t.kind == "run" for k in t.spec.keys.values()}   # runs it makes
     seen, tests, maps, run = set(), {}, 0, 0
     for test in plan.tests:
@@ -46,13 +55,30 @@ def needs(plan) -> dict:
             seen.add(key)
             n = len(test.frame_times[label])
             k = n if test.keep[label] is None else len(test.keep[label])
-            whole, kept, run = whole + n * px * FRAME_BYTES, kept + k * px * FRAME_BYTES, max(run, (n - k) * px * FRAME_BYTES)
-            maps += len(test.maps_for[label]) * px * MAPS_BYTES
+            frame = file_bytes("frame", test.width, test.height)
+            whole, kept, run = whole + n * frame, kept + k * frame, max(run, (n - k) * frame)
+            maps += len(test.maps_for[label]) * file_bytes("maps", test.width, test.height)
         if whole:
             k = (test.scene, test.protocol.name)
             w0, k0 = tests.get(k, (0, 0))
             tests[k] = (w0 + whole, k0 + kept)
     return {"references": refs, "maps": maps, "tests": tests, "run": run}
+
+
+def file_bytes(kind: str, width: int, height: int, extremes: bool = False) -> int:
+    """The bytes one file takes on disk, at most (as measured: see the constants).
+
+    Parameters
+    ----------
+    kind : {'frame', 'reference', 'maps'}
+        A run's judged frame, a reference, or a judged frame's SSIM/FLIP maps.
+    width, height : int
+        Its size in pixels.
+    extremes : bool
+        A reference that stores its sample extremes (rendered for reuse, references.cache).
+    """
+    per = {"frame": FRAME_BYTES, "reference": REFERENCE_BYTES, "maps": MAPS_BYTES}[kind]
+    return width * height * (per + (EXTREMES_BYTES if extremes else 0)) + FILE_BYTES
 
 
 def margin(need: dict) -> int:
@@ -69,6 +95,39 @@ def size(n: float) -> str:
         if n >= b:
             return f"{n / b:.1f} {unit}"
     return f"{n / 2 ** 10:.1f} KB"
+
+
+def summary(need: dict, free: int, pruned: bool) -> dict:
+    """What `estimate` reports of the plan's disk `need` (needs), in GB: references, maps, runs whole
+    and pruned, `free`, the peak with every test's runs whole while it refines, the least (every
+    test's runs pruned once judged, IN_FLIGHT being judged), each with its margin, and the peak
+    planned: the least if `pruned` (the profile's runs_while_refining, or nothing refined)."""
+    gb = 2 ** 30
+    tests = need["tests"].values()
+    whole, kept = sum(w for w, _ in tests), sum(k for _, k in tests)
+    out = {"references_gb": need["references"] / gb, "maps_gb": need["maps"] / gb, "runs_whole_gb": whole / gb,
+           "runs_kept_gb": kept / gb, "free_gb": free / gb,
+           "peak_gb": (need["references"] + need["maps"] + whole + margin(need)) / gb,
+           "least_gb": (need["references"] + need["maps"] + kept + IN_FLIGHT * need["run"] + margin(need)) / gb,
+           "runs_while_refining": "pruned" if pruned else "whole"}
+    out["planned_gb"] = out["least_gb"] if pruned else out["peak_gb"]
+    return out
+
+
+def describe(disk: dict, remake_s: float | None = None) -> list[str]:
+    """`estimate`'s lines for a `summary`; `remake_s`: the measured seconds of the plan's runs (what
+    a refinement round remakes at most when they are pruned)."""
+    pruned = disk["runs_while_refining"] == "pruned"
+    cost = ("" if not pruned else "; each refinement round remakes the refined tests' runs, " + (
+        f"at most {remake_s / 60:.0f} min a round" if remake_s is not None else "their time: --measure"))
+    return [f"disk: references {disk['references_gb']:.1f} GB, runs {disk['runs_whole_gb']:.1f} GB whole while "
+            f"their tests refine ({disk['runs_kept_gb']:.1f} GB once pruned to the frames the report reads), "
+            f"maps {disk['maps_gb']:.1f} GB; {disk['free_gb']:.1f} GB free in the cache's disk (study.engine.disk)",
+            f"disk at its peak: {disk['peak_gb']:.1f} GB with every test's runs whole, at least "
+            f"{disk['least_gb']:.1f} GB with runs pruned once judged (a test refined again then remakes "
+            f"its runs), each with its margin",
+            f"disk planned: {disk['planned_gb']:.1f} GB (runs {disk['runs_while_refining']} while their tests "
+            f"refine: the profile's runs_while_refining{cost})"]
 
 
 def fit(need: dict, free: int, figures: bool, folder: Path, already: frozenset = frozenset(),

@@ -222,7 +222,8 @@ class Study:
         whole while they refine (each round: finer references take room), and, for the probe's plan,
         whether a study decided from it before."""
         figures = self.precision.rule == "figures"
-        pruned = D.fit(D.needs(rnd.plan), D.free_bytes(self.cache.root), figures, self.cache.root, state.pruned,
+        whole = figures and self.profile.runs_while_refining == "whole"    # else every test's runs are pruned once judged
+        pruned = D.fit(D.needs(rnd.plan), D.free_bytes(self.cache.root), whole, self.cache.root, state.pruned,
                        self.log)
         if figures and pruned != state.pruned:
             return replace(state, pruned=pruned), True          # their metrics prune their runs

@@ -62,6 +62,12 @@ def unseal(data: dict, where: Path) -> dict:
     return data
 
 
+def codec(name: str) -> str:
+    """The lossless codec a folder's file is written with (references.exr.LOSSLESS): Zstandard
+    for SSIM/FLIP/video maps (15 % smaller than ZIP on the quick study's), ZIP for images."""
+    return "zstd" if name.startswith("maps_") else "zip"
+
+
 class FolderWriter:
     """A folder being made: it has no done record until `seal`, so a crash leaves it incomplete."""
 
@@ -72,7 +78,8 @@ class FolderWriter:
         self.hashes: dict[str, str] = {}
 
     def add(self, name: str, data) -> None:
-        write_exr(self.folder / name, data if isinstance(data, dict) else {"RGB": data})
+        write_exr(self.folder / name, data if isinstance(data, dict) else {"RGB": data},
+                  compression=codec(name))
         self.hashes[name] = sha256_file(self.folder / name)
 
     def seal(self, key: str, meta: dict) -> dict:
