@@ -86,13 +86,17 @@ class Texture(_Strict):
     # level; or trilinear over a mip chain at the pixel's UV footprint plus the column's LOD bias.
     # The reference integrates the base level (bilinear unless nearest) over each pixel's area.
     filter: Literal["nearest", "bilinear", "trilinear"] = "nearest"
+    # trilinear: added to the study column's LOD bias (a sampler's own bias, as engines set per texture)
+    lod_bias: float = Field(0.0, ge=-4.0, le=4.0)
 
     @model_serializer(mode="wrap")
     def _dump(self, handler):
-        # left out at its default, so a nearest-texel scene's content hash stays the one it had
+        # left out at their defaults, so a nearest-texel scene's content hash stays the one it had
         out = handler(self)
         if self.filter == "nearest":
             out.pop("filter", None)
+        if self.lod_bias == 0.0:
+            out.pop("lod_bias", None)
         return out
 
     @model_validator(mode="after")
@@ -106,6 +110,8 @@ class Texture(_Strict):
                 raise ValueError(f"texture data is empty (shape {self.data.shape})")
             if not np.all(np.isfinite(self.data)):
                 raise ValueError("texture data contains NaN or Inf")
+        if self.lod_bias and self.filter != "trilinear":
+            raise ValueError(f"lod_bias applies to filter 'trilinear' only (filter {self.filter!r})")
         return self
 
 

@@ -209,7 +209,8 @@ def _mip_tables(scene: ResolvedScene) -> dict:
                            ("emission_texture", 3), ("occlusion", 1)):
         arrays = scene.textures if role == "texture" else [m.get(role) for m in scene.maps]
         filters = [getattr(getattr(o.material, role), "filter", "nearest") for o in objs]
-        table = mip_table(arrays, filters, channels)
+        biases = [getattr(getattr(o.material, role), "lod_bias", 0.0) for o in objs]
+        table = mip_table(arrays, filters, channels, biases)
         if table is not None:
             out[role] = table
     return out

@@ -53,12 +53,14 @@ class MipTable:
     objs: mi.UInt32     # per object: code, first level, count
     levels: mi.UInt32   # per level: offset (texels), width, height
     data: mi.Float
+    bias: mi.Float      # per object: its texture's own LOD bias (scenes.description.Texture.lod_bias)
 
 
-def mip_table(textures, filters, channels: int) -> MipTable | None:
+def mip_table(textures, filters, channels: int, biases=None) -> MipTable | None:
     """The MipTable of per-object (H, W, C) arrays (None where an object has none) and their
-    filters, or None where no object's texture is filtered (its scene keeps the nearest-texel
-    kernel it always had). Bilinear textures store the base level alone."""
+    filters (and per-object LOD biases, 0 where None), or None where no object's texture is filtered
+    (its scene keeps the nearest-texel kernel it always had). Bilinear textures store the base level
+    alone."""
     if not any(t is not None and f != "nearest" for t, f in zip(textures, filters)):
         return None
     objs, levels, data, pos = [0, 0, 0], [], [], 0
@@ -80,8 +82,9 @@ def mip_table(textures, filters, channels: int) -> MipTable | None:
                 data.append(lv.ravel())
                 pos += lv.shape[0] * lv.shape[1]
         objs += stored[key]
+    bias = [0.0] + [float(b or 0.0) for b in (biases or [0.0] * len(textures))]
     return MipTable(mi.UInt32(np.array(objs, np.uint32)), mi.UInt32(np.array(levels, np.uint32)),
-                    mi.Float(np.concatenate(data)))
+                    mi.Float(np.concatenate(data)), mi.Float(np.array(bias, np.float32)))
 
 
 def has_trilinear(scene) -> bool:

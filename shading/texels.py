@@ -47,9 +47,9 @@ def filtered(mips, obj, uv, channels: int, active, foot=None):
     """Bilinear or trilinear lookup of each object's filtered texture (shading.mips.MipTable):
     (has_filtered, [channel values]). `foot` = ((du/dx, dv/dx, du/dy, dv/dy), lod_bias): the
     pixel's UV steps, for trilinear textures: level lambda = log2(max(|(du/dx W, dv/dx H)|,
-    |(du/dy W, dv/dy H)|)) + bias over the base level's W x H, clamped to the chain, and the two
-    levels around it blended (OpenGL's LINEAR_MIPMAP_LINEAR). Without `foot` (the reference, the
-    agreement check), the base level bilinearly."""
+    |(du/dy W, dv/dy H)|)) + bias + the texture's own bias, over the base level's W x H, clamped to
+    the chain, and the two levels around it blended (OpenGL's LINEAR_MIPMAP_LINEAR). Without `foot`
+    (the reference, the agreement check), the base level bilinearly."""
     code = dr.gather(mi.UInt32, mips.objs, obj * 3, active)
     first = dr.gather(mi.UInt32, mips.objs, obj * 3 + 1, active)
     count = dr.gather(mi.UInt32, mips.objs, obj * 3 + 2, active)
@@ -65,6 +65,7 @@ def filtered(mips, obj, uv, channels: int, active, foot=None):
                      dr.sqrt(dr.square(dudy * w0) + dr.square(dvdy * h0)))
     # a step that reached no plane (a grazing neighbour ray) is as coarse as the chain goes
     rho = dr.select(dr.isfinite(rho), rho, 1e30)
+    bias = bias + dr.gather(mi.Float, mips.bias, obj, tri)     # the column's and the texture's own
     lam = dr.clip(dr.log2(dr.maximum(rho, 1e-30)) + bias, 0.0, mi.Float(count - 1))
     l0 = mi.UInt32(dr.floor(lam))
     f = lam - mi.Float(l0)

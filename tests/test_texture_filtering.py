@@ -72,13 +72,13 @@ def test_a_trilinear_lookup_blends_the_levels_the_formula_picks(rho, bias):
     np.testing.assert_allclose([float(c[0]) for c in got], want, rtol=2e-5, atol=2e-6)
 
 
-def _head_on(filt: str, squares: int = 64, size: int = 32):
+def _head_on(filt: str, squares: int = 64, size: int = 32, own_bias: float = 0.0):
     """An unlit plane filling a 90-degree view from distance 1: 2 world units over `size` pixels,
     a 1-texel checker of `squares` texels over them: squares / size texels per pixel."""
     d = {"name": "head_on", "transport": "unlit", "camera": {"position": [0, 0, 1], "target": [0, 0, 0], "yfov_deg": 90},
          "objects": [{"name": "p", "mesh": {"kind": "plane", "size": [2.0, 2.0, 1.0]},
                       "material": {"albedo": [1, 1, 1], "texture": {"kind": "checker", "squares": squares,
-                                                                    "filter": filt}}}]}
+                                                                    "filter": filt, "lod_bias": own_bias}}}]}
     return ResolvedScene(Scene.model_validate(d))
 
 
@@ -99,6 +99,21 @@ def test_the_raster_footprint_selects_log2_texels_per_pixel_plus_bias():
     for bias, c in got.items():
         f = min(max(1.0 + bias, 0.0), 1.0)
         np.testing.assert_allclose(c, (1 - f) * level0 + 0.5 * f, atol=2e-5, err_msg=f"bias {bias}")
+
+
+def test_a_textures_own_bias_adds_to_the_columns_and_is_checked():
+    imgs = []
+    for own, col in ((-0.5, 0.0), (0.0, -0.5), (-0.25, -0.25), (0.0, 0.0)):
+        r = Rasterizer(_head_on("trilinear", own_bias=own), 32, 32, lod_bias=col)
+        imgs.append(r.render(0, (0.25, 0.25), ("color",))["color"])
+        r.close()
+    np.testing.assert_allclose(imgs[0], imgs[1], atol=1e-6)
+    np.testing.assert_allclose(imgs[2], imgs[1], atol=1e-6)
+    assert np.abs(imgs[3] - imgs[0]).max() > 0.2
+    with pytest.raises(ValueError, match="lod_bias applies to filter 'trilinear' only"):
+        _head_on("bilinear", own_bias=-1.0)
+    with pytest.raises(ValueError, match="greater than or equal to -4"):
+        _head_on("trilinear", own_bias=-4.5)
 
 
 def test_nearest_and_mip_free_rasters_ignore_the_bias_and_a_non_finite_bias_is_refused():
