@@ -183,3 +183,18 @@ def test_a_study_short_of_disk_prunes_its_largest_runs_and_makes_them_again_with
     with pytest.raises(D.DiskError, match=r"the study needs about .* [KMG]B in the cache folder .*full"):
         s4.run(scenes, configs, agreement=False)
     assert not list((tmp_path / "full").rglob("*.exr"))
+
+
+def test_run_stops_first_with_status_2_and_one_line_when_the_disk_cannot_hold_the_plan(tmp_path, monkeypatch):
+    """The CLI's `run`: exit 2 before any task, one line naming the GB needed, the GB free and the
+    cache folder; nothing written."""
+    from study_fixtures import run_cli, write_scenes
+    monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setattr(D, "free_bytes", lambda folder: 5 * 2 ** 20)
+    scenes = write_scenes(tmp_path)
+    r = run_cli(["run", "--scenes", ",".join(scenes), "--no-agreement", "--out", tmp_path / "out",
+                 "--techniques", "noaa"], code=2)
+    lines = [x for x in r.output.splitlines() if "needs about" in x]
+    assert len(lines) == 1 and "Traceback" not in r.output, r.output
+    assert f"in the cache folder {tmp_path / 'cache'}" in lines[0] and "and 5.0 MB is free" in lines[0], lines[0]
+    assert not list(tmp_path.rglob("*.exr"))
