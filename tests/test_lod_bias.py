@@ -14,10 +14,11 @@ from study.config.techniques import lod_bias
 from study.engine import drive
 
 
-def test_default_bias_is_fsr2s_rule_for_upscalers_and_zero_for_the_rest():
+def test_default_bias_is_fsr2s_rule_for_temporal_upscalers_the_density_for_spatial_ones_zero_else():
     assert lod_bias(TC("FSR 2", "fsr2", (("render_scale", 0.5),))) == pytest.approx(-2.0)
     assert lod_bias(TC("TAAU", "taau", (("render_scale", 0.75),))) == pytest.approx(math.log2(0.75) - 1)
-    assert lod_bias(TC("TAA", "taa_baseline")) == 0.0
+    assert lod_bias(TC("Lanczos", "upscale_spatial", (("render_scale", 0.5),))) == pytest.approx(-1.0)
+    assert lod_bias(TC("TAA", "taa_baseline")) == 0.0 and lod_bias(TC("FXAA", "fxaa")) == 0.0
     assert lod_bias(TC("TAA", "taa_baseline", (), -1.25)) == -1.25
     assert "lod_bias" not in TC("TAA", "taa_baseline").key_data()     # default columns keep their keys
     assert TC("TAA", "taa_baseline", (), -1.0).key_data()["lod_bias"] == -1.0

@@ -5,10 +5,13 @@ import math
 
 
 def lod_bias(explicit: float | None, inputs) -> float:
-    """The column's own bias (`explicit`), else log2(render / display) - 1 for an upscaler (FSR 2's
-    documented rule: the textures of the output's resolution, and one level sharper for the detail
-    accumulated over frames) and 0 for every other technique (a TAA at native resolution samples
-    textures as the scene was authored). `inputs`: the technique's taa_impl.contract.Inputs."""
+    """The column's own bias (`explicit`), else for an upscaler log2(render / display), the
+    output's texel density, and one level sharper, - 1, where it accumulates samples over frames
+    (FSR 2's documented rule); a spatial upscaler has no frames to add detail from, so it stays at
+    the density. 0 for every other technique (a TAA at native resolution samples textures as the
+    scene was authored). `inputs`: the technique's taa_impl.contract.Inputs."""
     if explicit is not None:
         return float(explicit)
-    return math.log2(float(inputs.render_scale)) - 1.0 if inputs.upsamples else 0.0
+    if not inputs.upsamples:
+        return 0.0
+    return math.log2(float(inputs.render_scale)) - (1.0 if inputs.sampling == "sequence" else 0.0)

@@ -268,7 +268,7 @@ def load_study(path: str | Path) -> Profile:
         for sc in scaled:
             bias = lod_bias(sc)
             if bias < m.min_lod_bias:
-                how = "" if sc.lod_bias is not None else f" (the upscalers' rule log2(render_scale) - 1 for {sc.label!r})"
+                how = "" if sc.lod_bias is not None else f" (the upscalers' rule, study.config.lod, for {sc.label!r})"
                 fail(f"techniques[{i}].lod_bias", bias, f"more negative than min_lod_bias = {m.min_lod_bias:g}{how}")
         configs.extend(scaled)
     if not configs:     # no techniques (or []): the default set, the built-in profile's

@@ -105,7 +105,8 @@ def at_scales(c: TechniqueConfig, scales) -> list[TechniqueConfig]:
 
 def lod_bias(c: TechniqueConfig) -> float:
     """The texture LOD bias of a column's raster frames (study.config.lod: its own, else FSR 2's
-    rule log2(render / display) - 1 for an upscaler, 0 for the rest)."""
+    rule log2(render / display) - 1 for a temporal upscaler, log2(render / display) for a spatial
+    one, 0 for the rest)."""
     return _lod_bias(c.lod_bias, c.make().inputs)
 
 
