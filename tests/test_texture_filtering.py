@@ -166,3 +166,22 @@ def test_trilinear_scene_meets_the_agreement_targets(tmp_path):
     print(f"agreement {a.agreement_psnr_db:.2f} dB, interior max err {a.interior_max_abs_err:.2e}")
     assert a.agreement_psnr_db >= TARGETS["agreement_psnr_db"]
     assert a.interior_max_abs_err <= TARGETS["interior_max_abs_err"]
+
+
+def test_a_nearest_object_beside_a_trilinear_one_renders_as_in_an_all_nearest_scene():
+    def two(right: str):
+        objs = [{"name": n, "mesh": {"kind": "plane", "size": [1.0, 2.0, 1.0]},
+                 "material": {"texture": {"kind": "checker", "squares": 48, "filter": f}},
+                 "transform": {"translate": [x, 0.0, 0.0], "rotate_axis": [1, 0, 0], "rotate_deg": -70.0}}
+                for n, f, x in (("left", "nearest", -0.5), ("right", right, 0.5))]
+        d = {"name": "two", "transport": "unlit", "camera": {"position": [0, 0, 1.5], "target": [0, 0, 0]},
+             "objects": objs}
+        r = Rasterizer(ResolvedScene(Scene.model_validate(d)), 48, 27)
+        out = r.render(0, (0.1, 0.3), ("color", "object_id"))
+        r.close()
+        return out
+    a, b = two("nearest"), two("trilinear")
+    left, right = a["object_id"] == 1, a["object_id"] == 2
+    assert left.sum() > 50 and right.sum() > 50 and np.array_equal(a["object_id"], b["object_id"])
+    assert np.array_equal(a["color"][left], b["color"][left])
+    assert not np.array_equal(a["color"][right], b["color"][right])
