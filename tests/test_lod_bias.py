@@ -70,3 +70,17 @@ def test_columns_of_different_biases_share_frames_only_where_no_texture_is_trili
     sharp, plain, same = (out[c.label]["images"][1] for c in cfgs)
     assert np.array_equal(plain, same)
     assert np.array_equal(sharp, plain) == (filt != "trilinear")
+
+
+def test_the_command_lines_spec_form_sets_the_bias_and_refuses_a_bad_one(tmp_path, monkeypatch):
+    from click.testing import CliRunner
+
+    from study.commands.cli import main
+    c = TC.parse("Sharp=taa_baseline:sharpen=0.2,lod_bias=-1.5")
+    assert (c.lod_bias, c.overrides) == (-1.5, (("sharpen", 0.2),))
+    with pytest.raises(ValueError, match="lod_bias must be a finite number"):
+        TC.parse("S=taa_baseline:lod_bias=NaN")
+    monkeypatch.chdir(tmp_path)
+    r = CliRunner().invoke(main, ["run", "--scenes", "pipe", "--techniques", "S=taa_baseline:lod_bias=-6"])
+    assert r.exit_code == 2 and "lod_bias -6 is more negative than -4" in r.output, r.output
+    assert not any(tmp_path.iterdir())          # nothing written

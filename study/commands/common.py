@@ -237,11 +237,15 @@ def _techniques(tech_list, default=()):
     labels = [c.label for c in configs]
     if len(set(labels)) != len(labels):
         _fail(f"technique labels must be unique, got {labels}")
+    from study.config.lod import MIN_LOD_BIAS
     for c in configs:
         try:
             c.make()
         except (TypeError, ValueError, KeyError) as exc:
             _fail(f"technique {c.label!r} ({c.name}, parameters {dict(c.overrides)}): {exc}")
+        if c.lod_bias is not None and c.lod_bias < MIN_LOD_BIAS:
+            _fail(f"technique {c.label!r}: lod_bias {c.lod_bias:g} is more negative than {MIN_LOD_BIAS:g} "
+                  "(a study file may lower its min_lod_bias)")
     return configs
 
 

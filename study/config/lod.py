@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import math
 
+MIN_LOD_BIAS = -4.0   # a study's default limit (study files: min_lod_bias; the command line: this)
+
 
 def lod_bias(explicit: float | None, inputs) -> float:
     """The column's own bias (`explicit`), else for an upscaler log2(render / display), the

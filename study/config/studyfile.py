@@ -66,6 +66,7 @@ from typing import Any, Literal, Union
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from . import defaults as D
+from .lod import MIN_LOD_BIAS
 from .precision import Precision
 from .profile import Profile
 from .protocols import Protocol
@@ -190,7 +191,7 @@ class StudyModel(_Model):
     render_scale: list[float] = Field(default_factory=list)
     # the most negative texture LOD bias a column may use (explicit or by the upscalers' rule):
     # below it a minified texture aliases as much as an unfiltered one
-    min_lod_bias: float = Field(-4.0, le=0)
+    min_lod_bias: float = Field(MIN_LOD_BIAS, le=0)
     sharpen_sweep: list[float] = Field(default_factory=list)
     sharpen_sweep_scenes: list[str] = Field(default_factory=lambda: list(D.SHARPEN_SWEEP_SCENES))
 

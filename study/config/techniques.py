@@ -11,6 +11,7 @@ import dataclasses
 import hashlib
 import importlib.util
 import json
+import math
 import sys
 from dataclasses import dataclass
 from functools import lru_cache
@@ -55,7 +56,7 @@ class TechniqueConfig:
     @classmethod
     def parse(cls, text: str) -> "TechniqueConfig":
         """'name' or 'label=name:field=value,field=value' (values parsed as JSON when they can be);
-        name may be 'path/to/file.py:ClassName'."""
+        name may be 'path/to/file.py:ClassName'; 'lod_bias=value' sets the column's texture LOD bias."""
         head = text.split(":")[0]
         label, _, rest = text.partition("=") if "=" in head and ".py" not in head.split("=")[0] else ("", "", text)
         if ".py:" in rest:
@@ -78,7 +79,13 @@ class TechniqueConfig:
             except json.JSONDecodeError:
                 val = v
             overrides.append((k, tuple(val) if isinstance(val, list) else val))
-        return cls(label or text, name, tuple(overrides))
+        # lod_bias is the column's raster setting (study.config.lod), not a technique parameter
+        bias = [v for k, v in overrides if k == "lod_bias"]
+        if bias and (isinstance(bias[-1], bool) or not isinstance(bias[-1], (int, float))
+                     or not math.isfinite(bias[-1])):
+            raise ValueError(f"technique {text!r}: lod_bias must be a finite number, got {bias[-1]!r}")
+        return cls(label or text, name, tuple((k, v) for k, v in overrides if k != "lod_bias"),
+                   float(bias[-1]) if bias else None)
 
 
 class TechniqueError(ValueError):
