@@ -11,17 +11,20 @@ from study.engine.agreement import TARGETS, check_agreement
 from study.commands.cli import main
 
 
-@pytest.mark.long(seconds=10)     # flowers about 25 s, the others 2
+W, H = 64, 36
+
+
+@pytest.mark.long(seconds=10)
 @pytest.mark.parametrize("name,frame", [("sphere_ghosting", 7), ("text_wall", 0), ("flowers", 0)])
 def test_agreement_targets_on_small_builtin_scenes(name, frame, tmp_path):
     scene = get_scene(name)
-    a = check_agreement(scene, 96, 54, frame=frame, samples=128, cache=ReferenceCache(tmp_path),
+    a = check_agreement(scene, W, H, frame=frame, samples=128, cache=ReferenceCache(tmp_path),
                         progress=False)
     assert a.agreement_psnr_db >= TARGETS["agreement_psnr_db"]
     assert a.interior_max_abs_err <= TARGETS["interior_max_abs_err"]
     assert a.reference_noise_psnr_db >= TARGETS["reference_noise_psnr_db"]
     assert a.single_sample and a.centre_match_fraction > 0.99
-    assert a.interior_pixels > 0.5 * 96 * 54
+    assert a.interior_pixels > 0.5 * W * H
 
 
 def test_cli_agree_json_keys_and_scene_listing(tmp_path, monkeypatch):

@@ -71,6 +71,7 @@ def test_local_cluster_gives_the_in_process_numbers_and_survives_a_killed_worker
                                "--dashboard-address", ":0"], env=env, cwd=ROOT,
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
     try:
+        _wait_listening(port, procs[0])     # a study refuses a scheduler that is not up yet
         workers = [subprocess.Popen([str(BIN / "dask"), "worker", addr, "--nthreads", "1", "--no-nanny",
                                      "--no-dashboard"], env=env, cwd=ROOT,
                                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for _ in range(2)]
@@ -90,6 +91,19 @@ def test_local_cluster_gives_the_in_process_numbers_and_survives_a_killed_worker
             p.kill()
             p.wait()
     assert numbers(tmp_path / "c") == numbers(tmp_path / "a")
+
+
+def _wait_listening(port: int, proc, seconds: float = 120.0) -> None:
+    """Until something accepts connections on the port (a loaded machine takes seconds to start Dask)."""
+    deadline = time.time() + seconds
+    while time.time() < deadline:
+        assert proc.poll() is None, "the Dask scheduler ended before it listened"
+        try:
+            socket.create_connection(("127.0.0.1", port), timeout=1).close()
+            return
+        except OSError:
+            time.sleep(0.1)
+    raise AssertionError(f"no Dask scheduler listening on port {port} after {seconds:.0f} s")
 
 
 def test_two_concurrent_studies_on_one_cache_compute_each_key_once(tmp_path, scenes):
