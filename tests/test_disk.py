@@ -127,7 +127,7 @@ def _study(root, scenes, **kw):
     return s, configs, logs
 
 
-@pytest.mark.long(seconds=25)
+@pytest.mark.long(seconds=35)
 def test_a_study_short_of_disk_prunes_its_largest_runs_and_makes_them_again_with_the_same_figures(tmp_path, monkeypatch):
     """A plan whose runs do not fit whole is still computed: the largest test's runs are pruned
     once judged and made again when its references are refined; every figure is the same as with
