@@ -8,6 +8,7 @@ such files (study/config/profiles/*.toml).
     agreement = true                                 # the reference agreement figure under each table
     sweep = false                                    # sparse supersampling's mu sweep
     render_scale = [0.5, 0.67, 1.0]                  # every upscaler's render scales; [] = its own default
+    min_lod_bias = -4.0                              # the most negative texture LOD bias a column may use
 
     [[techniques]]                                   # none or [] = the default set (the quick profile's)
     label = "Uncharted"
