@@ -11,7 +11,7 @@ import numpy as np
 
 from .description import (Camera, DirectionalLight, Material, MeshSpec, Motion, PointLight, Scene,
                           SceneObject, Texture, Transform)
-from .library import hard_cases, thesis
+from .library import hard_cases, modern, thesis
 from .library.common import BLUE, BROWN, QUICK, SKY, SUN, WALL, _box, _leaf_alpha, _text_texture  # noqa: F401
 
 
@@ -105,4 +105,9 @@ BUILTIN: dict[str, Callable[[], Scene]] = {
     "fast_object": hard_cases.fast_object,
     "disocclusion": hard_cases.disocclusion,
     "camera_cut": hard_cases.camera_cut,
+    # today's hard cases: glossy metal and moving cut-outs (scenes/library/modern.py)
+    "specular_shimmer": modern.specular_shimmer,
+    "specular_rail": modern.specular_rail,
+    "foliage_sway": modern.foliage_sway,
+    "modern_mix": modern.modern_mix,
 }

@@ -10,6 +10,7 @@ from scenes.library import hard_cases, thesis
 THESIS = ("pipe", "pipe_tilted", "blinds", "arched_window", "text_wall", "atrium", "flowers", "hard_edges",
           "sphere_ghosting", "hairball_unlit", "hairball_lit", "hairball_rotating_unlit", "hairball_rotating_lit")
 HARD = ("subpixel_lines", "moire", "hdr_contrast", "fast_object", "disocclusion", "camera_cut")
+MODERN = ("specular_shimmer", "specular_rail", "foliage_sway", "modern_mix")    # tests/test_modern_scenes.py
 
 
 @pytest.fixture(scope="module")
@@ -18,10 +19,10 @@ def scenes():
 
 
 def test_every_named_scene_is_built_in(scenes):
-    assert set(THESIS + HARD) <= set(scenes)
+    assert set(THESIS + HARD + MODERN) <= set(scenes)
 
 
-@pytest.mark.parametrize("name", THESIS + HARD)
+@pytest.mark.parametrize("name", THESIS + HARD + MODERN)
 def test_scene_is_described_at_both_resolutions(scenes, name):
     s = scenes[name]
     assert s.name == name
@@ -48,7 +49,7 @@ def test_claimed_features(scenes):
     assert {"direct_shadows", "shadows"} <= f["hairball_lit"] and f["hairball_unlit"] >= {"unlit"}
     assert "direct_shadows" in f["atrium"] and "unlit" in f["subpixel_lines"]
     assert scenes["hairball_rotating_lit"].desc.frames == 100 and scenes["disocclusion"].desc.frames >= 30
-    for name in THESIS + HARD:                    # static scenes have no motion; animated ones do
+    for name in THESIS + HARD + MODERN:                    # static scenes have no motion; animated ones do
         s = scenes[name]
         moving = "moving_object" in f[name] or "moving_camera" in f[name]
         assert moving == (s.desc.frames > 1), name
@@ -97,7 +98,7 @@ def test_arch_is_finely_tessellated(scenes):
     assert thesis.ARCH_SEGMENTS >= 96
 
 
-@pytest.mark.parametrize("name", THESIS + HARD)
+@pytest.mark.parametrize("name", THESIS + HARD + MODERN)
 def test_one_small_raster_frame_renders(scenes, name):
     from raster import Rasterizer
     s = scenes[name]
