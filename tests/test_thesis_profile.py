@@ -71,3 +71,6 @@ def test_estimate_plans_the_thesis_study_and_its_peak_disk(tmp_path, monkeypatch
     assert abs(d["peak_gb"] - (d["references_gb"] + d["maps_gb"] + d["runs_whole_gb"])) <= 2.0   # + the margin
     text = CliRunner().invoke(main, ["estimate", "--profile", "thesis"], catch_exceptions=False).output
     assert "disk at its peak:" in text and f"{d['peak_gb']:.1f} GB" in text
+    # it plans for its runs pruned once judged (runs_while_refining = "pruned"), remade if refined
+    assert d["runs_while_refining"] == "pruned" and d["planned_gb"] == d["least_gb"]
+    assert f"disk planned: {d['planned_gb']:.1f} GB (runs pruned while their tests refine" in text
