@@ -113,7 +113,7 @@ def test_a_crash_while_writing_an_artefact_leaves_no_done_record(tmp_path, monke
     img = np.zeros((2, 3, 3), np.float32)
     calls = []
 
-    def failing(path, channels, header=None):
+    def failing(path, channels, header=None, **kw):
         calls.append(path)
         if len(calls) == 2:
             raise OSError("disk full")
