@@ -22,9 +22,10 @@ study: $(STAMP)
 thesis: $(STAMP)
 	$(PY) -m study run --profile thesis $(THESIS_ARGS)
 
-# docs/results.md and the README's results block from the quick study's folder (taa-study results).
+# docs/results.md and the README's results block (taa-study results): from the thesis study's out/thesis
+# where it is finished (`make thesis`), else from the quick study's out/quick; RESULTS_ARGS="--source quick" forces one.
 results: $(STAMP)
-	$(PY) -m study results --out out/quick
+	$(PY) -m study results $(RESULTS_ARGS)
 
 # The suite builds the paper: TeX is installed first, and a PDF test that finds no TeX fails
 # instead of skipping (TAA_REQUIRE_LATEX). It runs in TEST_WORKERS processes (pytest-xdist; the
@@ -36,11 +37,13 @@ test: $(STAMP)
 	TAA_REQUIRE_LATEX=1 $(PY) -m pytest -q --durations=20 -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 # A LaTeX toolchain when missing (scripts/setup_latex.sh, as `make test`), then
-# `taa-study paper`: the study (make-style, cached), its tables and figures into paper/generated/,
-# and paper/main.pdf. PAPER_ARGS passes options, e.g. PAPER_ARGS="--scenes pipe,blinds".
+# `taa-study paper`: the thesis study's finished out/thesis where there is one (`make thesis`; read as
+# it is), else the quick study (make-style, cached); its tables and figures into paper/generated/,
+# and paper/main.pdf. PAPER_ARGS passes options, e.g. PAPER_ARGS="--source quick" or "--scenes pipe,blinds"
+# (the quick study of those scenes).
 paper: $(STAMP)
 	bash scripts/setup_latex.sh
-	$(PY) -m study paper --profile quick $(PAPER_ARGS)
+	$(PY) -m study paper $(PAPER_ARGS)
 	@test -s paper/main.pdf || { echo "make paper: paper/main.pdf was not built" >&2; exit 1; }
 	@pdfinfo paper/main.pdf | grep -E '^Pages:' | sed 's/^/paper\/main.pdf: /'
 

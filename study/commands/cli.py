@@ -2,8 +2,8 @@
 import sys
 
 try:
-    from study.commands import (results_command, scene_commands,  # noqa: F401  (they register their commands)
-                                study_commands)
+    from study.commands import (paper_command, results_command,  # noqa: F401  (they register their commands)
+                                scene_commands, study_commands)
 except RuntimeError as exc:
     # backend.BackendError at import (TAA_VARIANT, libLLVM): an environment to fix, not a crash.
     # Matched by name: the failed import of `backend` took its module out of sys.modules.

@@ -355,33 +355,3 @@ def _ab_pair(ca, cb, scene_list, prof, video, as_json, limits, scale, executor, 
             click.echo(f"  GATE FAILED: B is worse than A on {m} by {w:.4g} (> {limits[m]})" if math.isfinite(w)
                        else f"  GATE FAILED: {m} has no finite pair to judge")
     return failed, block
-
-
-@main.command()
-@click.argument("study_file", required=False, type=click.Path(dir_okay=False))
-@PROFILE_OPTION
-@click.option("--scenes", "scene_list", default=None, callback=_scene_list,
-              help="Comma-separated scenes (default: the study file's, or every built-in).")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
-              help="The study's output folder (default: the study file's, or out/<name>).")
-@click.option("--no-pdf", is_flag=True, help="Only regenerate paper/generated/, do not run LaTeX.")
-@_execution_options
-def paper(study_file, profile, scene_list, out_dir, no_pdf, workers, threads, scheduler):
-    """Regenerate the study, copy its tables and figures into paper/generated/, build the PDF."""
-    from scenes import builtin_names
-    from study.reporting import paper_pdf
-
-    prof = _profile(study_file, profile)
-    src = run_study(prof, scene_list or list(prof.scenes) or builtin_names(), _techniques((), prof.techniques),
-                    out_dir, not prof.agreement, _executor(workers, threads, scheduler), sweep=prof.sweep)
-    root = PAPER_DIR
-    got = paper_pdf.fill_generated(src, root)       # only what this study's manifest lists
-    click.echo(f"paper/generated/: {len(got['tables'])} tables, {len(got['figures'])} figures")
-    if no_pdf:
-        return
-    try:
-        pdf = paper_pdf.build_pdf(root)
-    except paper_pdf.PaperError as exc:
-        _fail(str(exc))
-    info = paper_pdf.contents(root)
-    click.echo(f"built {pdf} ({info.get('pages', '?')} pages)")

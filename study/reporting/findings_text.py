@@ -106,8 +106,17 @@ def table(record: dict) -> Table:
                  widths=[0.2, 0.12, 0.13, 0.08, 0.06, 0.1, 0.19])
 
 
+def source_line(record: dict) -> str | None:
+    """The study a findings record comes from, in words (its 'study' field), or None."""
+    from study.reporting.source import study_line
+    if not isinstance(record.get("study"), dict):
+        return None
+    return "From " + study_line(record["study"], record.get("resolutions") or []) + "."
+
+
 def markdown(record: dict) -> str:
-    lines = ["## Findings", ""] + [f"- {s}" for s in summary(record)] + ["", table(record).markdown()]
+    src = source_line(record)
+    lines = ["## Findings", ""] + ([f"*{src}*", ""] if src else []) + [f"- {s}" for s in summary(record)] + ["", table(record).markdown()]
     return "\n".join(lines)
 
 

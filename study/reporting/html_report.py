@@ -7,6 +7,7 @@ PNGs from out/images and out/maps by relative path).
 `data` (JSON-serialisable; every path relative to out_dir, and every file it names must exist):
 
     {"title": str, "profile": str,
+     "source": str,                                  # optional: the study, in words (study.reporting.source.study_line)
      "findings": [sentence, ...],                    # optional: the prose findings
      "overview": "plots/overview.png",               # optional: the first screen's figure (report.Report.overview)
      "resolution": {scene: [width, height]},
@@ -29,7 +30,7 @@ PNGs from out/images and out/maps by relative path).
      "tables": {stem: {"title": str, "note": str (optional), "header": [str], "rows": [[str]],
                        "links": [[row, column, "images/....png"], ...]}}}
 
-The first screen holds the overview figure and the verdict table (the findings table's claim,
+The first screen opens with the study it shows (profile, resolution, commit, date), then holds the overview figure and the verdict table (the findings table's claim,
 thesis, ours and verdict columns, wrapped to the window); the prose findings follow. Tables are shown in the order headline, reproduction, history_convergence, speed_error, then the
 rest as given; a linked cell opens its image in the viewer that holds it (or the file itself).
 
@@ -93,6 +94,7 @@ def validate(out_dir: Path, data: dict) -> dict:
         return p
 
     clean = {"title": str(data.get("title", "TAA study")), "profile": str(data.get("profile", "")),
+             "source": str(data.get("source", "")),
              "resolution": {}, "scenes": {}, "tables": {}, "findings": [], "missed": {}}
     findings = data.get("findings") or []
     _need(isinstance(findings, list) and all(isinstance(x, str) for x in findings), "findings",

@@ -2,8 +2,9 @@
 the results, the discussion of the measured causes and the reproducibility statement, each from a
 study's findings record (study.reporting.findings, tables/findings.json) and manifest alone.
 
-    scope(record, summary) -> str             the Results section's first line: profile, resolutions,
-                                              protocols, scenes and techniques;
+    scope(record, summary) -> str             the Results section's first line: the study it comes from
+                                              (profile, resolutions, commit, date), its protocols, scenes
+                                              and techniques;
     discussion(record) -> str                 each claim's measured cause (its factor, its verdict
                                               against the thesis's ground truth, the resolution)
                                               and the study's factors, in sentences;
@@ -33,14 +34,18 @@ def _res(r: str) -> str:
 
 
 def scope(record: dict | None, summary: dict) -> str:
-    """The line that opens the Results: which profile, resolutions, protocols, scenes, techniques."""
+    """The line that opens the Results: which study (profile, resolutions, commit, date; the thesis
+    study at its scale where `taa-study paper` found one, study.reporting.source), its protocols,
+    scenes, techniques."""
     profile = summary.get("profile") or "a study file's"
     scenes = [Path(s).stem for s in summary.get("scenes", [])]
     techniques = summary.get("techniques", [])
     if record is None:
         return esc(f"Profile {profile}: this study has no findings record (tables/findings.json).")
+    from study.reporting.source import study_line
     res = ", ".join(_res(r) for r in record["resolutions"]) or "no static test"
-    line = (f"Profile {profile}, at {res}; static protocols: {', '.join(record['protocols']) or 'none'}; "
+    line = (f"From {study_line(summary, [_res(r) for r in record['resolutions']])}. "
+            f"Profile {profile}, at {res}; static protocols: {', '.join(record['protocols']) or 'none'}; "
             f"ghosting protocols: {', '.join(record['ghosting_protocols']) or 'none'}; "
             f"{len(scenes)} scene{'s' * (len(scenes) != 1)}, {len(techniques)} technique"
             f"{'s' * (len(techniques) != 1)}.")

@@ -257,13 +257,16 @@ class Report(Summaries, Upscaling, SharpenSweep, Static):
                                                   "figures over", "worst"], rows, note), inputs)
 
     # -- findings ----------------------------------------------------------------------------
-    def findings(self, res, variants: dict, alt: dict | None = None) -> dict:
+    def findings(self, res, variants: dict, alt: dict | None = None, study: dict | None = None) -> dict:
         """The thesis's claims adjudicated (study.reporting.findings): tables/findings.json, the
-        claims table, the summary's LaTeX, and the sentences that open study.md."""
+        claims table, the summary's LaTeX, and the sentences that open study.md. `study`: the
+        study's profile, commit and date, which the record names (its 'study' field)."""
         from study.reporting import findings as F
         from study.reporting import findings_text as FT
         from study.reporting.encode import strict_json
         rec = F.findings(res, self.roles, variants, alt)
+        if study:
+            rec["study"] = dict(study)
         inputs = {"findings": hashlib.sha256(strict_json(rec, sort_keys=True).encode()).hexdigest()}
         self._file("tables/findings.json", strict_json(rec, indent=1, sort_keys=True), inputs)
         self._file("tables/findings_summary.tex", FT.latex_summary(rec), inputs)
@@ -335,7 +338,7 @@ def write_study(out: Path, res, configs, summary: dict, start: float) -> None:
     gt_label = ground_truth.label_of(configs)
     alt = ground_truth.figures(report, views, res.references, gt_label) if res.artefacts is not None else {}
     report.ground_truth(views, alt, gt_label)
-    report.findings(res, variants, alt)
+    report.findings(res, variants, alt, {k: summary.get(k) for k in ("profile", "commit", "date")})
     converged = list(views.values())[-1] if views else []
     report.speed_error(converged)
     report.upscaling(converged, res.ghosts, configs, thesis_roles(configs).get("Uncharted"))

@@ -112,9 +112,13 @@ def collect(out_dir: Path) -> dict:
 
     if have("plots/overview.png"):
         data["overview"] = "plots/overview.png"
-    if have("tables/findings.json"):
+    record = json.loads((out_dir / "tables/findings.json").read_text()) if have("tables/findings.json") else None
+    if record is not None:
         from study.reporting import findings_text
-        data["findings"] = findings_text.summary(json.loads((out_dir / "tables/findings.json").read_text()))
+        data["findings"] = findings_text.summary(record)
+    from study.reporting.source import study_line     # the first screen's first line: which study
+    res = (record or {}).get("resolutions") or sorted({f"{w}x{h}" for w, h in data["resolution"].values()})
+    data["source"] = "From " + study_line(summary, res)
     for rel in sorted(listed):
         if not (rel.startswith("tables/") and rel.endswith(".csv")) or not have(rel):
             continue
