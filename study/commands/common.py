@@ -357,6 +357,7 @@ def run_study(profile, names, configs, out_dir, no_agreement, executor, sweep=Tr
     from study.config.profile import thesis_roles
     summary = {**res.stats, "profile": study.profile.name, "scenes": names,
                "techniques": [c.label for c in configs], "roles": thesis_roles(configs),
+               "video_metric": study.profile.video.metric,      # 'none': the ghosting tables say why no JOD
                "executor": executor.describe(), "commit": _checkout_commit(),
                "date": datetime.now(timezone.utc).isoformat(timespec="seconds")}
     _write_report(folder, lambda where: write_study(where, res, configs, summary, start))

@@ -53,6 +53,7 @@ such files (study/config/profiles/*.toml).
     tests = ["ghosting"]                             # and/or "static" (the static views' image pairs)
     scenes = []                                      # [] = every scene of those tests
     techniques = []                                  # column labels or registry names; [] = every column
+    device = "auto"                                  # torch's device for it: "cuda" where torch sees one; "cpu"; "cuda"
 
 Relative paths (scenes, technique files, out) are relative to the study file. A bad file exits 2
 with the file, the field and the value.
@@ -157,6 +158,7 @@ class VideoEntry(_Model):
     tests: list[Literal["ghosting", "static"]] = Field(default_factory=lambda: list(D.VIDEO["tests"]))
     scenes: list[str] = Field(default_factory=list)
     techniques: list[str] = Field(default_factory=list)
+    device: Literal["auto", "cpu", "cuda"] = D.VIDEO["device"]
 
     @field_validator("display")
     @classmethod

@@ -30,6 +30,7 @@ class Video:
     tests: tuple = D.VIDEO["tests"]              # 'ghosting' (every ghosting protocol) and/or 'static'
     scenes: tuple = ()                           # scene names; () = every scene of those tests
     techniques: tuple = ()                       # column labels or registry names; () = every column
+    device: str = D.VIDEO["device"]              # torch's: 'auto' (CUDA where torch sees one) | 'cpu' | 'cuda'
 
     def __post_init__(self):
         for f in ("tests", "scenes", "techniques"):
@@ -43,6 +44,11 @@ class Video:
         """Whether a test of this kind ('static' | 'ghosting') on this scene judges the column."""
         return (self.on and kind in self.tests and (not self.scenes or scene in self.scenes)
                 and (not self.techniques or config.label in self.techniques or config.name in self.techniques))
+
+    def task_data(self) -> dict:
+        """What a video task is given: key_data and the device it runs on (which keys nothing: the
+        same metric, on another processor)."""
+        return {**self.key_data(), "device": self.device}
 
     def key_data(self) -> dict:
         """What a JOD figure depends on besides its frames (the metric's code is keyed apart)."""

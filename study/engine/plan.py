@@ -311,7 +311,7 @@ class Planner:
             gkey = task_key("video-of", [it["key"]])
             self.plan.tasks[gkey] = Task(gkey, VideoSpec(
                 self.ctx, spec, test.width, test.height, [it], {t: at[t] for t in it["ts"]},
-                self.display_settings, video.key_data(), test.protocol.kind), deps)
+                self.display_settings, video.task_data(), test.protocol.kind), deps)
 
     def prunes(self, test: Test) -> bool:
         """Whether the test's metrics task prunes its runs once judged."""

@@ -100,7 +100,7 @@ class VideoSpec:
     items: list                   # one dict per technique (video_task.video_task lists its fields)
     ref_settings: dict            # scene time -> its reference's settings
     display_settings: dict
-    video: dict                   # study.config.video.Video.key_data()
+    video: dict                   # study.config.video.Video.task_data()
     protocol_kind: str            # static | ghosting
 
     def __call__(self) -> dict:

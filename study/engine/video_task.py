@@ -22,7 +22,7 @@ def video_task(ctx, scene_spec: str, w: int, h: int, items: list, ref_settings: 
                video: dict, kind: str, deps=()) -> dict:
     """items: one per technique, {run_folder, run_key, frame_times (frame id -> scene time),
     frames (the judged frame ids: a ghosting test's in order, a static test's views), key, folder}.
-    `ref_settings`: scene time -> its reference's settings. `video`: study.config.video.Video.key_data().
+    `ref_settings`: scene time -> its reference's settings. `video`: study.config.video.Video.task_data().
     Returns the records by key."""
     store = _setup(ctx)
     scene = load_scene(scene_spec)
@@ -41,7 +41,7 @@ def _judge(store, ctx, scene, w, h, items, ref_settings, display_settings, video
     from study.metrics.video import metric
     if not items:
         return
-    vdp = metric(video["display"], ctx.threads)
+    vdp = metric(video["display"], ctx.threads, video.get("device", "auto"))
     cache = ReferenceCache(Path(ctx.cache_root))
     refs8: dict = {}         # scene time -> {half: 8-bit reference}, read once for every technique
     disps: dict = {}

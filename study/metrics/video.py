@@ -48,22 +48,27 @@ class ColorVideoVDP:
         A cvvdp display model name (e.g. 'standard_fhd').
     threads : int, optional
         torch's CPU threads.
+    device : {'auto', 'cpu', 'cuda'}
+        Where torch runs the metric: 'auto' is CUDA where torch sees a device, else the CPU
+        (study files' [video] device; see torch_device).
 
     Raises
     ------
     ValueError
-        If cvvdp does not know the display model.
+        If cvvdp does not know the display model, or 'cuda' is asked and torch sees no device.
     """
 
-    def __init__(self, display: str = "standard_fhd", threads: int | None = None):
+    def __init__(self, display: str = "standard_fhd", threads: int | None = None, device: str = "cpu"):
         os.environ["HF_HUB_OFFLINE"] = "1"
         import pycvvdp
         import torch
         if threads:
             torch.set_num_threads(int(threads))
         self.display, self._torch = display, torch
+        self.device = torch_device(device, torch.cuda.is_available())
         try:
-            self._metric = {hm: pycvvdp.cvvdp(display_name=display, heatmap=hm, quiet=True, device=torch.device("cpu"))
+            self._metric = {hm: pycvvdp.cvvdp(display_name=display, heatmap=hm, quiet=True,
+                                              device=torch.device(self.device))
                             for hm in (None, "raw")}
         except Exception as exc:      # cvvdp raises its own error types for an unknown display model
             raise ValueError(f"cvvdp display model {display!r}: {exc}") from None
@@ -113,12 +118,40 @@ class ColorVideoVDP:
                 q, stats = m.predict(t, r, dim_order="FHWC", frames_per_second=float(fps))
         hmap = None
         if heatmap:
-            hmap = np.asarray(stats["heatmap"][0, 0, -1].float().numpy(), np.float32)
+            hmap = np.asarray(stats["heatmap"][0, 0, -1].float().cpu().numpy(), np.float32)
         return float(q), hmap
 
 
+def torch_device(device: str, cuda_available: bool) -> str:
+    """The torch device a [video] device setting names here: 'auto' -> 'cuda' where torch sees a
+    CUDA device, else 'cpu'; 'cpu'; 'cuda' (ValueError where torch sees none).
+
+    Parameters
+    ----------
+    device : {'auto', 'cpu', 'cuda'}
+    cuda_available : bool
+        torch.cuda.is_available() in this process.
+
+    Returns
+    -------
+    str
+        'cpu' or 'cuda'.
+
+    Raises
+    ------
+    ValueError
+        An unknown setting, or 'cuda' without a device.
+    """
+    if device not in ("auto", "cpu", "cuda"):
+        raise ValueError(f"[video] device = {device!r}: expected 'auto', 'cpu' or 'cuda'")
+    if device == "cuda" and not cuda_available:
+        raise ValueError("[video] device = 'cuda': torch sees no CUDA device here (torch.cuda.is_available() "
+                         "is False); use 'auto' or 'cpu'")
+    return "cuda" if device == "cuda" or (device == "auto" and cuda_available) else "cpu"
+
+
 @lru_cache(maxsize=4)
-def metric(display: str, threads: int | None = None) -> ColorVideoVDP:
+def metric(display: str, threads: int | None = None, device: str = "cpu") -> ColorVideoVDP:
     """A process's metric for a display (its construction and torch's import are paid once).
 
     Parameters
@@ -127,10 +160,12 @@ def metric(display: str, threads: int | None = None) -> ColorVideoVDP:
         A cvvdp display model name.
     threads : int, optional
         torch's CPU threads.
+    device : {'auto', 'cpu', 'cuda'}
+        Where torch runs it (torch_device).
 
     Returns
     -------
     ColorVideoVDP
-        Kept per (display, threads).
+        Kept per (display, threads, device).
     """
-    return ColorVideoVDP(display, threads)
+    return ColorVideoVDP(display, threads, device)

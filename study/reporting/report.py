@@ -41,6 +41,7 @@ class Report(Summaries, Upscaling, SharpenSweep, Static):
     and this study did not write again (a file no manifest listed is the user's and stays)."""
 
     FOLDERS = ("tables", "images", "maps", "plots")
+    video_off = False        # the study's [video] metric is "none": its ghosting tables say so (jod_off_note)
 
     def __init__(self, out: Path, artefacts=None, roles: dict | None = None, display=None):
         """`artefacts`: the engine's reader of frames and maps (study.engine.results.Artefacts).
@@ -160,6 +161,8 @@ class Report(Summaries, Upscaling, SharpenSweep, Static):
                         + [fmt("jod", res.jod.get(l, {}).get("sequence"), ju) for l in labels] + [fmt_u(ju)])
             jod = (f" JOD: ColorVideoVDP {VIDEO_VERSION} of the {len(res.frames)} frames as a video at {res.video['fps']:g} "
                    f"fps on its '{res.video['display']}' display model (10 = no visible difference; higher is better).")
+        elif self.video_off:
+            jod = jod_off_note(res.width, res.height)
         rows.append([METRIC_LABELS["ms"], "median"] + [fmt("ms", res.ms[l]) for l in labels] + ["–"])
         note = (f"{res.test}: {len(res.frames)} frames at {res.width}x{res.height}, each against its own reference. "
                 + floor_note(agree) + precision_note(res) + jod)
@@ -308,6 +311,16 @@ class Report(Summaries, Upscaling, SharpenSweep, Static):
                           f'{{\n "artefacts": {{\n{arts}\n }},\n "summary": {one(self.summary)}\n}}\n')
 
 
+def jod_off_note(width: int, height: int) -> str:
+    """A ghosting table's words where the study's [video] metric is "none": why it has no JOD and
+    where one is (the cost: docs/guide.md, "Profiles"; the device: study.metrics.video)."""
+    return (f" JOD not computed at {width}x{height}: this study's [video] metric is \"none\" (ColorVideoVDP costs "
+            "about 6 s per technique-frame at 1600x900 on one CPU core, three times that with the reference's "
+            "halves). The quick study's JOD at 320x180 is in its own ghosting tables (make study: "
+            "out/quick/tables/ghosting_*). For one here, run with [video] metric = \"cvvdp\" on a CUDA device "
+            "([video] device = \"auto\" uses it where torch sees one).")
+
+
 def write_study(out: Path, res, configs, summary: dict, start: float) -> None:
     """Every table, image, map, plot and the interactive report of a study's results
     (study.engine.results.StudyResults) into `out`; the manifest lists exactly these files."""
@@ -318,6 +331,7 @@ def write_study(out: Path, res, configs, summary: dict, start: float) -> None:
     from study.reporting.findings import sharpen_variants
     from study.reporting import html_report
     report = Report(out, res.artefacts, thesis_roles(configs), res.display)
+    report.video_off = summary.get("video_metric") == "none"
     views = res.views
     for vi, results in enumerate(views.values()):
         for r in results:
