@@ -6,7 +6,11 @@ into a temporary cache. `--smoke` instead checks the stack: the variant, a tiny 
 one raster frame (pyrender through EGL) of a scene.
 
     TAA_VARIANT=cuda_ad_rgb python3 scripts/gpu_bench.py [--scene hairball_rotating_lit]
-        [--width 1600 --height 900] [--frames 0 1] [--compare pipe] [--held-out]
+        [--width 1600 --height 900] [--frames 0 1] [--compare pipe] [--held-out] [--profile thesis]
+        [--intersect [--rays-per-pixel 16 --repeats 3]]
+
+`--intersect` then times Mitsuba's own `ray_intersect` on the scene's frame 0 (camera rays, the
+reference's geometry) and prints its rays/s beside the reference's samples/s.
     python3 scripts/gpu_bench.py --smoke [--scene pipe --width 320 --height 180]
 """
 from __future__ import annotations
@@ -69,7 +73,7 @@ def smoke(scene_name: str, width: int, height: int) -> None:
     print("SMOKE OK", flush=True)
 
 
-def bench(args) -> None:
+def bench(args) -> float | None:
     t0 = time.perf_counter()
     import backend
     from backend import mi
@@ -88,6 +92,7 @@ def bench(args) -> None:
           f"{'Msamples/s':>10s} {'over':>6s} {'noise dB':>8s}", flush=True)
     cases = [(args.scene, t, "cold" if i == 0 else "warm") for i, t in enumerate(args.frames)]
     cases += [(c, 0, "compare") for c in args.compare]
+    rates = {}
     with tempfile.TemporaryDirectory() as tmp:
         cache = ReferenceCache(tmp)
         for name, t, tag in cases:
@@ -99,6 +104,46 @@ def bench(args) -> None:
             print(f"{f'{name} t={t} {args.width}x{args.height} {tag}':38s} {wall:8.2f} {ref.seconds:8.2f} "
                   f"{ref.spp_mean:9.1f} {ref.spp_max:8d} {total / 1e6:9.2f} {total / 1e6 / max(ref.seconds, 1e-9):10.2f} "
                   f"{ref.over_bound:6d} {ref.noise_psnr_db:8.2f}{' (cached!)' if cached else ''}", flush=True)
+            if name == args.scene:
+                rates[tag] = total / 1e6 / max(ref.seconds, 1e-9)
+    return rates.get("warm", rates.get("cold"))
+
+
+def intersect(args, ref_rate: float | None) -> None:
+    """Mitsuba's own ray_intersect rate on the scene's frame 0 (its path-tracing scene, the
+    reference's geometry): `--rays-per-pixel` camera rays a pixel at the bench's size, traced
+    `--repeats` times after one untimed pass (kernels compiled); the best pass is printed beside
+    the reference's samples/s, each of whose samples is a path of several such rays and their shading."""
+    from backend import dr, mi
+    from references.mitsuba_scene import path_scene, sensor
+    from scenes import get_scene
+    scene = get_scene(args.scene)
+    mscene = path_scene(scene, 0)
+    sens = sensor(scene.camera(0, args.width, args.height), 1)
+    n = args.width * args.height * args.rays_per_pixel
+    rng = dr.arange(mi.UInt32, n)
+    pos = mi.Point2f(mi.Float(rng % args.width) + 0.5, mi.Float((rng // args.width) % args.height) + 0.5)
+    pos = mi.Point2f(pos.x / args.width, pos.y / args.height)
+    ray, _ = sens.sample_ray(0.0, 0.5, pos, mi.Point2f(0.5, 0.5))
+    dr.eval(ray)
+    best, hits = None, 0
+    for i in range(args.repeats + 1):
+        dr.sync_thread()
+        t0 = time.perf_counter()
+        si = mscene.ray_intersect(mi.Ray3f(ray))
+        valid = si.is_valid()
+        dr.eval(si.t, valid)
+        dr.sync_thread()
+        dt = time.perf_counter() - t0
+        if i:                              # the first pass compiles the kernel
+            best = dt if best is None else min(best, dt)
+            hits = int(dr.count(valid)[0]) if hasattr(dr.count(valid), "__getitem__") else int(dr.count(valid))
+    rate = n / 1e6 / best
+    line = (f"ray_intersect {args.scene} t=0 {args.width}x{args.height}, {args.rays_per_pixel} rays a pixel "
+            f"({n / 1e6:.2f} M rays, {hits / n:.1%} hit): best of {args.repeats} {best:.4f} s, {rate:.1f} M rays/s")
+    if ref_rate:
+        line += f"; the reference's {ref_rate:.2f} M samples/s is {ref_rate / rate:.3%} of it"
+    print(line, flush=True)
 
 
 def main() -> None:
@@ -113,12 +158,18 @@ def main() -> None:
     ap.add_argument("--profile", default="full", help="the built-in profile whose [reference] is used")
     ap.add_argument("--bound", type=float, default=None, help="override se_bound_lsb")
     ap.add_argument("--held-out", action="store_true", help="held-out references (the figures rule's)")
+    ap.add_argument("--intersect", action="store_true",
+                    help="then Mitsuba's own ray_intersect rate on the scene (camera rays), beside the reference's")
+    ap.add_argument("--rays-per-pixel", type=int, default=16, help="--intersect's rays a pixel")
+    ap.add_argument("--repeats", type=int, default=3, help="--intersect's timed passes")
     args = ap.parse_args()
     if args.smoke:
         smoke(args.scene or "pipe", args.width, args.height)
     else:
         args.scene = args.scene or "hairball_rotating_lit"
-        bench(args)
+        rate = bench(args) if args.frames else None
+        if args.intersect:
+            intersect(args, rate)
 
 
 if __name__ == "__main__":
