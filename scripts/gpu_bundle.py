@@ -144,12 +144,15 @@ def build(p: dict, venv: str | None) -> None:
     for s in p["steps"][1:]:
         print(f"gpu_bundle: {s['step']}: {shlex.join(s['cmd'])}", flush=True)
         if s["step"] == "download":
-            base = s["cmd"][:-2]
-            for line in _locked(out / "lock.txt"):
-                try:
-                    _run(base + [line], f"pip download {line}")
-                except BundleError:
-                    _sdist_wheel(line, out / "wheels")
+            try:                        # one pip for the whole lock; line by line where that fails
+                _run(s["cmd"], "pip download")
+            except BundleError:
+                base = s["cmd"][:-2]
+                for line in _locked(out / "lock.txt"):
+                    try:
+                        _run(base + [line], f"pip download {line}")
+                    except BundleError:
+                        _sdist_wheel(line, out / "wheels")
         else:
             if s.get("cwd"):
                 Path(s["cwd"]).mkdir(parents=True, exist_ok=True)
