@@ -1,6 +1,7 @@
 """The study as a task graph: the same numbers in-process and on a Dask LocalCluster, a killed
 worker's task run again, and two studies on one cache computing each key once. Clusters run in
 their own processes (as a user would start them), so no event loop outlives a test."""
+import json
 import os
 import shutil
 import signal
@@ -19,13 +20,53 @@ BIN = Path(sys.executable).parent
 TECHS = ["--techniques", "taa_baseline", "--techniques", "fxaa", "--techniques", "noaa"]
 
 
+# The quick profile's protocols, short: what these tests prove (the executors agree, a killed
+# worker's task runs again, each key computed once) holds for any length of run, and the quick
+# profile's 256-frame static runs and 224-frame warm-ups were most of their time.
+STUDY = """
+name = "graph"
+resolution = "quick"
+agreement = false
+sweep = false
+ghosting_skip = []
+[[techniques]]
+spec = "noaa"
+[protocols.static]
+history = 16
+checkpoints = [1, 4, 16]
+thesis_history = 16
+[[protocols.ghosting]]
+name = "ghosting"
+frames = 4
+warmup = 0
+[[protocols.ghosting]]
+name = "ghosting_warm"
+frames = 4
+warmup = 16
+[video]
+metric = "none"
+[precision]
+rule = "per_pixel"
+psnr_db = 0.05
+ssim = 5e-4
+flip = 5e-4
+relative = 0.0115
+relmse = 0.05
+"""
+
+
 @pytest.fixture
 def scenes(tmp_path):
+    (tmp_path / "graph.toml").write_text(STUDY)
     return write_scenes(tmp_path)
 
 
+def _study_file(scenes) -> str:
+    return str(Path(scenes[0]).parent / "graph.toml")
+
+
 def _study_cmd(scenes, out, *extra):
-    return [sys.executable, "-m", "study", "run", "--scenes", ",".join(scenes), "--no-agreement",
+    return [sys.executable, "-m", "study", "run", _study_file(scenes), "--scenes", ",".join(scenes), "--no-agreement",
             "--precision", "per_pixel", *TECHS,
             "--out", str(out), *extra]
 
@@ -39,17 +80,18 @@ def _free_port() -> int:
 @pytest.mark.long(seconds=30)
 def test_local_cluster_gives_the_in_process_numbers_and_survives_a_killed_worker(tmp_path, scenes, monkeypatch):
     monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache_a"))
-    run_cli(["run", "--scenes", ",".join(scenes), "--no-agreement", "--precision", "per_pixel", *TECHS,
-             "--out", tmp_path / "a"])
+    run_cli(["run", _study_file(scenes), "--scenes", ",".join(scenes), "--no-agreement", "--precision", "per_pixel",
+             *TECHS, "--out", tmp_path / "a"])
     s_a = summary(tmp_path / "a")
     # 2 statics x 3, cold ghosting x 3, warm ghosting only the TAA: No AA and FXAA have no history,
     # so their warm runs are their cold ones (study.engine.plan.run_steps)
     assert s_a["runs_computed"] == 2 * 3 + 3 + 1 and s_a["executor"] == "in-process"
-    cold, warm = ((tmp_path / "a" / "tables" / f"{p}_tiny_moving.csv").read_text().splitlines()
+    figures = json.loads((tmp_path / "a" / "tables" / "figures.json").read_text())["tests"]
+    cold, warm = (next(t["techniques"] for t in figures if (t["scene"], t["protocol"]) == ("tiny_moving", p))
                   for p in ("ghosting", "ghosting_warm"))
-    col = lambda rows, c: [r.split(",")[c] for r in rows]   # noqa: E731
-    assert col(cold, 3) == col(warm, 3) and col(cold, 4) == col(warm, 4)     # fxaa, noaa
-    assert col(cold, 2)[1:] != col(warm, 2)[1:]                               # the TAA's warm history
+    assert cold["fxaa"] == warm["fxaa"] and cold["noaa"] == warm["noaa"]
+    assert all(cold["taa_baseline"]["frames"][f]["figures"] != warm["taa_baseline"]["frames"][f]["figures"]
+               for f in cold["taa_baseline"]["frames"])                      # the TAA's warm history
 
     env = {**os.environ, "TAA_STUDY_CACHE": str(tmp_path / "cache_b")}
     r = subprocess.run(_study_cmd(scenes, tmp_path / "b", "--workers", "2"), env=env, cwd=ROOT,
@@ -125,7 +167,7 @@ def test_a_deterministic_failure_stops_every_executor_with_the_same_message(tmp_
         "import numpy as np\nfrom taa_impl.simple import NoAA\n"
         "class NaNAA(NoAA):\n    name = 'nan_aa'\n"
         "    def process(self, frame, **kw):\n        return np.full(frame['color'].shape, np.nan, np.float32)\n")
-    cmd = [sys.executable, "-m", "study", "run", "--scenes", scenes[1], "--no-agreement", "--techniques",
+    cmd = [sys.executable, "-m", "study", "run", _study_file(scenes), "--scenes", scenes[1], "--no-agreement", "--techniques",
            f"Bad={tmp_path / 'nan_taa.py'}:NaNAA"]
     msgs = []
     for i, extra in enumerate(([], ["--workers", "2"])):
@@ -198,6 +240,5 @@ with E.Session(E.Executor("auto", workers=2), log=logged.append) as s:
 """
     r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr[-3000:]
-    import json
     got = json.loads(r.stdout.strip().splitlines()[-1])
     assert got == {"threads": [1], "same": True, "n": 2 * 8, "dashboards": 1}, got
