@@ -39,6 +39,6 @@ def results(source, out_dir, doc, readme, no_readme):
     try:
         got = write(out_dir, doc, None if no_readme else (readme or "README.md"), why)
     except ResultsError as exc:
-        _fail(str(exc))
+        _fail(f"{exc}; the source: {why}" if why else str(exc))
     click.echo(f"wrote {got['doc']}" + (f" and the results block of {got['readme']}" if got["readme"] else "")
                + f" from {out_dir}" + (f": {why}" if why else ""))

@@ -58,7 +58,7 @@ def unfinished(folder, profile: str) -> str | None:
     folder = Path(folder)
     mpath = folder / "manifest.json"
     if not mpath.is_file():
-        return f"{folder} has no manifest.json (the study has not finished)"
+        return f"{folder} has no manifest.json: no study finished there"
     if (folder / INCOMPLETE).exists():
         return f"{folder} holds a report still being moved into place"
     try:
