@@ -30,6 +30,8 @@ warmup = 0
 name = "ghosting_warm"
 frames = 4
 warmup = 16
+[video]
+metric = "none"
 [precision]
 rule = "per_pixel"
 """

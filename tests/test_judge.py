@@ -3,6 +3,7 @@ judging each run alone (metrics.judge_run, the whole-sequence form)."""
 import functools
 import json
 import math
+import shutil
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -104,9 +105,9 @@ def test_runs_keep_only_the_frames_the_report_reads_and_are_remade_when_judged_a
     scene = tmp_path / "long.toml"
     scene.write_text(moving_scene(frames=30, size=(24, 16)))
     path = tmp_path / "s.toml"
-    # no video metric: it keeps every judged frame of the runs it reads (study.engine.plan)
-    path.write_text(STUDY.format(scenes=json.dumps([str(scene)])).replace("frames = 4", "frames = 30")
-                    + '\n[video]\nmetric = "none"\n')
+    # no video metric (STUDY has none): it keeps every judged frame of the runs it reads (study.engine.plan)
+    assert '[video]\nmetric = "none"' in STUDY
+    path.write_text(STUDY.format(scenes=json.dumps([str(scene)])).replace("frames = 4", "frames = 30"))
     configs = [TechniqueConfig.parse(s) for s in ("taa_baseline", "noaa")]
 
     def run():
@@ -187,6 +188,9 @@ def test_a_test_judged_again_takes_the_figures_of_frames_whose_references_did_no
         return res, figs, s.drifts, len(calls), list(logs)
     kept, figs, drifts, n, log = study("kept")
     reused = sum(int(m.split("; ")[-1].split()[0]) for m in log if "taken from an earlier round's" in m)
+    # the second study starts with the first one's references (content-keyed cache hits): what it
+    # checks is the judging, and rendering the same references again was half of this test's time
+    shutil.copytree(tmp_path / "kept" / "references", tmp_path / "fresh" / "references")
     get = J.FrameFigures.get
     monkeypatch.setattr(J.FrameFigures, "get", lambda self, *a: None)   # every frame judged afresh
     fresh, figs0, drifts0, n0, _ = study("fresh")
