@@ -2,6 +2,7 @@
 estimated from (references.render), and precision set by the figures (study.engine.precision)."""
 import json
 import math
+import shutil
 
 import numpy as np
 import pytest
@@ -426,8 +427,10 @@ def test_a_seeded_study_plans_its_agreement_beside_the_new_column_s_runs(tmp_pat
         res = Study(get_profile("quick"), cache_root=tmp_path / cache, progress=False).run(
             scenes, cs, agreement=seeded is not None, seeded=bool(seeded))
         return res, list(rounds)
-    for cache in ("early", "late"):
-        study(cache, [a], None)
+    study("early", [a], None)
+    # the same references in both caches (content-keyed cache hits): what differs is the planning
+    shutil.copytree(tmp_path / "early" / "references", tmp_path / "late" / "references")
+    study("late", [a], None)
     res, planned = study("early", [a, b], True)
     refined = any(len(r["rounds"]) > 1 for per in res.precision.values() for r in per.values())
     assert not refined, res.precision        # noaa's bound holds B's figures here (else a finer round)
@@ -503,9 +506,12 @@ def test_a_settled_test_s_agreement_runs_while_other_tests_still_refine(tmp_path
     assert {("tiny_moving", "static"), ("tiny_still", "static")} <= f and kinds.count("agreement") == 2
     assert not {("tiny_moving", "ghosting"), ("tiny_moving", "ghosting_warm")} & f      # its cold twin waits too
     assert rounds[-1][0] is True and "agreement" not in rounds[-1][1]     # the last round finds them done
+    # the second study starts with the first one's references (content-keyed cache hits): what it
+    # checks is when the agreement is planned, and rendering them again was half of this test's time
+    shutil.copytree(tmp_path / "early" / "references", tmp_path / "late" / "references")
     late, late_rounds = study("late", wait=True)
-    def figures(agreements):          # its timings and their seal differ run to run by nature
-        return {n: {k: v for k, v in a.items() if not k.endswith("_seconds") and k != "sha256"}
+    def figures(agreements):          # its timings, their seal and whether its reference was a cache hit
+        return {n: {k: v for k, v in a.items() if not k.endswith("_seconds") and k not in ("sha256", "reference_cached")}
                 for n, a in agreements.items()}
     assert "agreement" in late_rounds[-1][1] and figures(late.agreements) == figures(res.agreements)
     assert sorted(late.agreements) == ["tiny_moving", "tiny_still"]
