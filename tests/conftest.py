@@ -1,4 +1,5 @@
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -46,6 +47,31 @@ def pytest_collection_modifyitems(session, config, items):
             cost[item.path] = cost.get(item.path, 0) + float(m.kwargs.get("seconds", m.args[0] if m.args else 1))
     order = {path: i for i, path in enumerate(dict.fromkeys(item.path for item in items))}
     items.sort(key=lambda it: (-cost.get(it.path, 0), order[it.path]))
+
+
+class ReferencePool:
+    """References an earlier test of this process rendered, for a later test whose subject is not
+    the references: the cache is content-keyed (references/<scene>/<key>.exr), so a seeded test
+    finds what it would have rendered itself as cache hits, and renders whatever else it asks for."""
+
+    def __init__(self, root):
+        self.root = root
+
+    def seed(self, cache_root):
+        """Copies every pooled reference into the cache under `cache_root`."""
+        import shutil
+        shutil.copytree(self.root, Path(cache_root) / "references", dirs_exist_ok=True)
+
+    def keep(self, cache_root):
+        """Adds the references of the cache under `cache_root` to the pool."""
+        import shutil
+        if (Path(cache_root) / "references").is_dir():
+            shutil.copytree(Path(cache_root) / "references", self.root, dirs_exist_ok=True)
+
+
+@pytest.fixture(scope="session")
+def reference_pool(tmp_path_factory):
+    return ReferencePool(tmp_path_factory.mktemp("reference_pool"))
 
 
 @pytest.fixture

@@ -144,11 +144,13 @@ def test_runs_keep_only_the_frames_the_report_reads_and_are_remade_when_judged_a
     assert files(third.ghosts["ghosting"][0], "taa_baseline")[1] == pruned
 
 
-def test_under_the_figures_rule_a_run_is_made_once_over_every_round_and_pruned_once_settled(tmp_path):
+def test_under_the_figures_rule_a_run_is_made_once_over_every_round_and_pruned_once_settled(tmp_path, reference_pool):
     """A test going to a finer bound is judged again from its runs kept whole, not re-made (each
     round re-made every pruned run: 7 run tasks here instead of 4); once settled they are pruned."""
     from study_fixtures import run_tiny_study, summary
+    reference_pool.seed(tmp_path / "cache")       # references an earlier test rendered: cache hits
     s = summary(run_tiny_study(tmp_path, "taa_baseline", "noaa", precision="figures"))
+    reference_pool.keep(tmp_path / "cache")
     assert s["tasks"]["reference"] > 2 * 5            # more than the probe round: finer bounds were asked
     # one run task per test (static x 2 scenes, cold, warm TAA), each of its runs made once
     assert s["tasks"]["run"] == 4 and s["runs_computed"] == 2 * 2 + 2 + 1
@@ -161,7 +163,8 @@ def test_under_the_figures_rule_a_run_is_made_once_over_every_round_and_pruned_o
         assert not any((done.parent / n).exists() for n in rec.get("pruned", []))
 
 
-def test_a_test_judged_again_takes_the_figures_of_frames_whose_references_did_not_change(tmp_path, monkeypatch):
+def test_a_test_judged_again_takes_the_figures_of_frames_whose_references_did_not_change(tmp_path, monkeypatch,
+                                                                                         reference_pool):
     """Under the figures' rule a ghosting test is judged again each round some of its instants are
     refined; a frame whose reference and display transform are the ones an earlier round judged it
     against keeps its figures (study.engine.judge.FrameFigures). Every figure, uncertainty, drift
@@ -186,7 +189,9 @@ def test_a_test_judged_again_takes_the_figures_of_frames_whose_references_did_no
         figs = {(t.scene, t.test): (t.per_frame, t.uncertainty, t.temporal, t.temporal_u)
                 for t in res.statics + [g for gs in res.ghosts.values() for g in gs]}
         return res, figs, s.drifts, len(calls), list(logs)
+    reference_pool.seed(tmp_path / "kept")
     kept, figs, drifts, n, log = study("kept")
+    reference_pool.keep(tmp_path / "kept")
     reused = sum(int(m.split("; ")[-1].split()[0]) for m in log if "taken from an earlier round's" in m)
     # the second study starts with the first one's references (content-keyed cache hits): what it
     # checks is the judging, and rendering the same references again was half of this test's time

@@ -326,7 +326,7 @@ def test_a_test_within_tolerance_at_the_probe_settles_there_unless_confirm_asks_
 
 
 @pytest.mark.long(seconds=25)
-def test_a_study_of_the_same_tasks_replays_the_precision_decisions(tmp_path, monkeypatch):
+def test_a_study_of_the_same_tasks_replays_the_precision_decisions(tmp_path, monkeypatch, reference_pool):
     """A no-op study plans its final round alone (its inputs — profile, scenes, columns, code — are
     an earlier study's, whose decisions are recorded under its probe's keys), and states the same
     bounds, drifts and figures as a study that decides afresh. Relabelled columns are other inputs
@@ -354,7 +354,9 @@ def test_a_study_of_the_same_tasks_replays_the_precision_decisions(tmp_path, mon
                 for t in res.statics + [g for gs in res.ghosts.values() for g in gs]}
         return res, figs, len(plans), s.drifts
 
+    reference_pool.seed(tmp_path / "cache")      # the planning is checked here, not the references
     first, figs1, n1, drifts1 = study()
+    reference_pool.keep(tmp_path / "cache")
     rounds = {k: p["rounds"] for k, per in first.precision.items() for p in per.values()}
     # probed, then refined, then the agreement against the final references
     assert n1 >= 3 and min(len(r) for r in rounds.values()) >= 2 and plans[-1], (n1, rounds)
@@ -374,7 +376,7 @@ def test_a_study_of_the_same_tasks_replays_the_precision_decisions(tmp_path, mon
 
 
 @pytest.mark.long(seconds=20)
-def test_a_seeded_study_starts_each_test_at_the_bound_an_earlier_study_settled(tmp_path):
+def test_a_seeded_study_starts_each_test_at_the_bound_an_earlier_study_settled(tmp_path, reference_pool):
     """What `ab` runs: with one technique added, every test starts at the bound the study settled
     it at (no probe round: the settled column's figures there are cached), and is refined only where
     the new column's figures ask for it; unseeded, the same study starts at the probe."""
@@ -391,7 +393,9 @@ def test_a_seeded_study_starts_each_test_at_the_bound_an_earlier_study_settled(t
         s = Study(get_profile("quick"), cache_root=tmp_path / "cache", progress=False, log=logs.append)
         res = s.run(scenes, cs, agreement=False, seeded=seeded)
         return {(n, p): r["rounds"] for n, per in res.precision.items() for p, r in per.items()}, res
+    reference_pool.seed(tmp_path / "cache")
     first, _ = study([a], False)
+    reference_pool.keep(tmp_path / "cache")
     assert all(r[0] == 8.0 and len(r) >= 2 for r in first.values()), first    # probed, then refined
     seeded, res = study([a, b], True)
     assert any("start at the bound an earlier study settled" in m for m in logs), logs
@@ -402,7 +406,7 @@ def test_a_seeded_study_starts_each_test_at_the_bound_an_earlier_study_settled(t
 
 
 @pytest.mark.long(seconds=20)
-def test_a_seeded_study_plans_its_agreement_beside_the_new_column_s_runs(tmp_path, monkeypatch):
+def test_a_seeded_study_plans_its_agreement_beside_the_new_column_s_runs(tmp_path, monkeypatch, reference_pool):
     """`ab`'s loop: a test seeded at an earlier study's bound plans its agreement (and video) in the
     first round, beside the new column's runs; where no test is refined that round is the last
     (no round of its own for what the final references feed). The same figures as a study that
@@ -427,7 +431,9 @@ def test_a_seeded_study_plans_its_agreement_beside_the_new_column_s_runs(tmp_pat
         res = Study(get_profile("quick"), cache_root=tmp_path / cache, progress=False).run(
             scenes, cs, agreement=seeded is not None, seeded=bool(seeded))
         return res, list(rounds)
+    reference_pool.seed(tmp_path / "early")
     study("early", [a], None)
+    reference_pool.keep(tmp_path / "early")
     # the same references in both caches (content-keyed cache hits): what differs is the planning
     shutil.copytree(tmp_path / "early" / "references", tmp_path / "late" / "references")
     study("late", [a], None)
@@ -470,7 +476,7 @@ def test_the_ghosting_protocols_share_an_instant_s_reference_at_the_finest_level
 
 
 @pytest.mark.long(seconds=20)
-def test_a_settled_test_s_agreement_runs_while_other_tests_still_refine(tmp_path, monkeypatch):
+def test_a_settled_test_s_agreement_runs_while_other_tests_still_refine(tmp_path, monkeypatch, reference_pool):
     """The agreement (and the video metric) is judged against a test's final references: planned in
     the round after the test settles rather than in a last round of its own, so it fills the rounds
     the other tests still refine in. A ghosting test is settled only once no ghosting protocol of
@@ -498,7 +504,9 @@ def test_a_settled_test_s_agreement_runs_while_other_tests_still_refine(tmp_path
         s = Study(get_profile("quick"), cache_root=tmp_path / cache, progress=False)
         res = s.run(scenes, configs, agreement=True)
         return res, list(finals)
+    reference_pool.seed(tmp_path / "early")
     res, rounds = study("early")
+    reference_pool.keep(tmp_path / "early")
     # tiny_moving's warm ghosting test refines one instant in the third round; both static tests settled
     refining = [(f, kinds) for f, kinds in rounds if isinstance(f, frozenset) and "metrics" in kinds and f]
     assert refining, rounds
@@ -519,7 +527,7 @@ def test_a_settled_test_s_agreement_runs_while_other_tests_still_refine(tmp_path
 
 
 @pytest.mark.long(seconds=15)
-def test_a_ghosting_test_is_judged_and_refined_on_the_figures_it_prints(tmp_path, monkeypatch):
+def test_a_ghosting_test_is_judged_and_refined_on_the_figures_it_prints(tmp_path, monkeypatch, reference_pool):
     """A ghosting table prints MSE, PSNR, SSIM and FLIP LDR per frame and the temporal RMS: those
     alone set its references' bounds (FLIP HDR, printed by no ghosting table, had set
     hairball_rotating_lit's), and its frames are not judged in HDR; a static test is bound by,
@@ -532,6 +540,7 @@ def test_a_ghosting_test_is_judged_and_refined_on_the_figures_it_prints(tmp_path
     scenes = write_scenes(tmp_path)
     seen, real = [], RN.decide
     monkeypatch.setattr(RN, "decide", lambda now, *a, **k: seen.append(now) or real(now, *a, **k))
+    reference_pool.seed(tmp_path / "c")
     s = RN.Study(get_profile("quick"), cache_root=tmp_path / "c", progress=False)
     res = s.run(scenes, [TechniqueConfig.parse(x) for x in ("taa_baseline", "noaa")], agreement=False)
     bound = {kind: {k[-1] for now in seen for test, figs in now.items() for k in figs
