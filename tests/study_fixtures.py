@@ -67,19 +67,24 @@ def run_cli(args, code=0):
     return r
 
 
-def run_tiny_study(root, *techniques, precision="per_pixel"):
+def run_tiny_study(root, *techniques, precision="per_pixel", pool=None):
     """A real study of the two tiny scenes under `root` (its own cache); returns its output folder.
     At 40x24 no reference reaches the figures' tolerances (960 pixels), so the per-pixel rule is
-    the default here; tests/test_precision.py tests the figures' rule."""
+    the default here; tests/test_precision.py tests the figures' rule. `pool` (conftest's
+    reference_pool): its cache starts with the references earlier tests rendered, and adds its own."""
     import pytest
     scenes = write_scenes(root)
     out = root / "out"
     args = ["run", "--scenes", ",".join(scenes), "--no-agreement", "--out", out, "--precision", precision]
     for t in techniques:
         args += ["--techniques", t]
+    if pool is not None:
+        pool.seed(root / "cache")
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("TAA_STUDY_CACHE", str(root / "cache"))
         run_cli(args)
+    if pool is not None:
+        pool.keep(root / "cache")
     return out
 
 

@@ -161,7 +161,7 @@ def test_against_the_thesis_s_ground_truth_each_case_is_judged_again_by_its_sign
     assert claim(record(statics), "improved_beats_uncharted")["ground_truth"] is None
 
 
-def test_every_technique_is_judged_against_the_thesis_s_ground_truth_from_its_shown_image(tmp_path):
+def test_every_technique_is_judged_against_the_thesis_s_ground_truth_from_its_shown_image(tmp_path, reference_pool):
     """tables/ground_truth.json against the report's own display PNGs of the same frames: the PSNR
     of No AA's image against the 128-sample accumulation's, computed here from the PNGs."""
     import json
@@ -171,7 +171,7 @@ def test_every_technique_is_judged_against_the_thesis_s_ground_truth_from_its_sh
     from PIL import Image
     sys.path.insert(0, str(Path(__file__).parent))
     from study_fixtures import run_tiny_study
-    out = run_tiny_study(tmp_path, "noaa", "accumulation")
+    out = run_tiny_study(tmp_path, "noaa", "accumulation", pool=reference_pool)
     got = json.loads((out / "tables/ground_truth.json").read_text())
     assert set(got) == {"tiny_moving|thesis (16 frames, cold)", "tiny_moving|converged (256 frames)",
                         "tiny_still|thesis (16 frames, cold)", "tiny_still|converged (256 frames)"}

@@ -141,10 +141,10 @@ def test_bad_data_is_refused_naming_the_field(tmp_path, edit, words):
 
 # -- a real tiny study ------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
-def tiny_study(tmp_path_factory):
+def tiny_study(tmp_path_factory, reference_pool):
     """A real study of the two tiny scenes (No AA and the baseline TAA) and its report. Where the
     study does not write report.html itself yet, the report is built here from its folder."""
-    out = run_tiny_study(tmp_path_factory.mktemp("html_study"), "noaa", "taa_baseline")
+    out = run_tiny_study(tmp_path_factory.mktemp("html_study"), "noaa", "taa_baseline", pool=reference_pool)
     page = out / "report.html"
     hooked = page.exists()
     if not hooked:

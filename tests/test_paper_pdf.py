@@ -159,12 +159,12 @@ def _pdf_text(pdf) -> str:
 
 
 @pytest.mark.long(seconds=20)
-def test_paper_builds_from_a_tiny_study_with_its_sections_and_no_text_under_6pt(tmp_path):
+def test_paper_builds_from_a_tiny_study_with_its_sections_and_no_text_under_6pt(tmp_path, reference_pool):
     why = _latex_missing()
     if why:
         print(f"skipping the PDF build: {why}")
         pytest.skip(why)
-    out = run_tiny_study(tmp_path, "noaa", "taa_baseline")
+    out = run_tiny_study(tmp_path, "noaa", "taa_baseline", pool=reference_pool)
     paper = tmp_path / "paper"
     paper.mkdir()
     for name in ("main.tex", "references.bib"):                # the repository's own paper
