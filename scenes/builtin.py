@@ -110,4 +110,5 @@ BUILTIN: dict[str, Callable[[], Scene]] = {
     "specular_rail": modern.specular_rail,
     "foliage_sway": modern.foliage_sway,
     "modern_mix": modern.modern_mix,
+    "texture_crawl": modern.texture_crawl,
 }

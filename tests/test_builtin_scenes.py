@@ -10,7 +10,7 @@ from scenes.library import hard_cases, thesis
 THESIS = ("pipe", "pipe_tilted", "blinds", "arched_window", "text_wall", "atrium", "flowers", "hard_edges",
           "sphere_ghosting", "hairball_unlit", "hairball_lit", "hairball_rotating_unlit", "hairball_rotating_lit")
 HARD = ("subpixel_lines", "moire", "hdr_contrast", "fast_object", "disocclusion", "camera_cut")
-MODERN = ("specular_shimmer", "specular_rail", "foliage_sway", "modern_mix")    # tests/test_modern_scenes.py
+MODERN = ("specular_shimmer", "specular_rail", "foliage_sway", "modern_mix", "texture_crawl")    # tests/test_modern_scenes.py
 
 
 @pytest.fixture(scope="module")
