@@ -22,7 +22,7 @@ from provenance import Normalized, task_key
 from study.config.protocols import Protocol, judged_steps
 from study.config.techniques import TechniqueConfig
 from study.engine import tasks as T
-from study.engine.reuse_chain import chain_reuse
+from study.engine.reuse_chain import bridge_by_kept, chain_reuse
 from study.engine.specs import AgreementSpec, MetricsSpec, ReferenceSpec, RunSpec, Task, VideoSpec
 
 
@@ -184,7 +184,7 @@ class Planner:
         test = Test(scene.name, spec, protocol, list(configs), w, h, ref_settings=settings)
         kept_t = sorted({s.t for s in schedule if s.keep})
         at = test.ref_settings_at = chain_reuse({t: self.settings(scene, protocol.name, t) for t in kept_t},
-                                                (self.display_settings, settings))
+                                                (self.display_settings, settings), bridge_by_kept(scene, w, h))
         ref_keys = {t: self.reference_key(scene, t, w, h, at[t]) for t in kept_t}
         disp_keys = {t: self.reference_key(scene, t, w, h, self.display_settings) for t in kept_t}
         missing, steps = [], {}
