@@ -17,6 +17,11 @@ A technique frame's figures against one reference (and display transform) are al
 references are refined, and the frames whose reference did not change (at 320x180, 22 of
 hairball_rotating_lit's 24 in its last round) take their figures from there instead of judging
 again; only the temporal measure, which needs every frame in order, reads them all.
+
+A run pruned once judged (its item's `keep`) keeps no float frame: the frames the report shows are
+kept instead, by its metrics record, as the 8-bit display images they were judged as
+(`shown_NNNN.png`, lossless for those 8 bits: at 1600x900 ~1.5 MB where the float frame took ~9;
+docs/scale.md, "Disk"). The report and the paper show nothing else of a run.
 """
 from __future__ import annotations
 
@@ -48,7 +53,9 @@ def metrics_task(ctx, scene_spec: str, w: int, h: int, items: list, ref_settings
                  deps=()) -> dict:
     """items: one per technique, {run_folder, run_key, frame_times (frame id -> scene time),
     maps_for (frame ids whose maps are kept), keep (frame ids of the run to keep once judged, or
-    None for all), hdr (judged in linear HDR too: Protocol.hdr), key, folder}. `ref_settings`: scene time -> the settings of its reference (each
+    None for all), shown_8bit (those kept as the 8-bit images the report shows, in the metrics
+    folder, and no float frame; else as float frames), hdr (judged in linear HDR too: Protocol.hdr),
+    key, folder}. `ref_settings`: scene time -> the settings of its reference (each
     instant of a test has its own bound: study.engine.precision). Returns the records by metrics key."""
     store = _setup(ctx)
     scene = load_scene(scene_spec)
@@ -102,6 +109,9 @@ def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict, display_set
     cache = ReferenceCache(Path(ctx.cache_root))
     state = [{"per_frame": {}, "uncertainty": {}, "maps": {}, "references": {},
               "temporal": {h: T.TemporalInstability() for h in HALVES}} for _ in items]
+    # a pruned run's shown frames, written as they are judged (no whole run's images held at once)
+    writers = [store.writer(Path(it["folder"])) for it in items]
+    shown = [set(it["keep"]) if it.get("keep") is not None and it.get("shown_8bit") else set() for it in items]
     known = [FrameFigures(store, scene.name, it["run_key"], it.get("hdr", True)) for it in items]
     for t in sorted(by_time):
         ref = cache.get(scene, t, w, h, **ref_settings[t])[0]
@@ -119,6 +129,8 @@ def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict, display_set
                 raise TaskError(f"{exc}: the run was invalidated; run the study again to re-make it") from None
             x = np.stack([ch[c] for c in "RGB"], -1)
             x_lin, x_disp, x8 = disp.output(x, run["output_space"])
+            if f in shown[i]:
+                writers[i].add_png(f"shown_{f:04d}.png", x8)
             keep = [hv == "" and f in it["maps_for"] for hv in refs]
             figs = None if any(keep) else known[i].get(f, ref.key, dref.key)
             if figs is None:
@@ -131,7 +143,7 @@ def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict, display_set
                 st["temporal"][hv].add(r8, x8)
             st["per_frame"][str(f)], st["uncertainty"][str(f)] = U.jackknife(figs[""], figs["a"], figs["b"])
             st["references"][str(t)] = ref.key
-    for it, st, kn in zip(items, state, known):
+    for it, st, kn, wr in zip(items, state, known, writers):
         kn.save()
         tm = {hv: (acc.value() if acc.frames > 1 else None) for hv, acc in st["temporal"].items()}
         temporal = temporal_u = None
@@ -140,9 +152,13 @@ def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict, display_set
             temporal, temporal_u = c["temporal"], u["temporal"]
         data = {"per_frame": st["per_frame"], "uncertainty": st["uncertainty"], "temporal": temporal,
                 "temporal_u": temporal_u, "references": st["references"]}
-        rec = store.save_folder(Path(it["folder"]), it["key"], st["maps"], {"data": data})
-        if it.get("keep") is not None:   # judged: only the frames the report shows stay (study.engine.plan)
-            store.prune(Path(it["run_folder"]), it["run_key"], {f"frame_{f:04d}.exr" for f in it["keep"]})
+        for name, maps in st["maps"].items():
+            wr.add(name, maps)
+        rec = wr.seal(it["key"], {"data": data})
+        if it.get("keep") is not None:   # judged: only what the report shows stays (study.engine.plan)
+            # as shown, above; as float frames where the video metric reads them too
+            keep = set() if it.get("shown_8bit") else {f"frame_{f:04d}.exr" for f in it["keep"]}
+            store.prune(Path(it["run_folder"]), it["run_key"], keep)
         yield it, rec["data"], kn.reused
 
 

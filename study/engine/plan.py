@@ -268,6 +268,7 @@ class Planner:
                 items = [{"label": c.label, "run_folder": test.run_folders[c.label], "run_key": test.run_keys[c.label],
                           "frame_times": test.frame_times[c.label], "maps_for": test.maps_for[c.label],
                           "keep": test.keep[c.label] if self.prunes(test) else None, "hdr": test.protocol.hdr,
+                          "shown_8bit": c.label not in vlabels,     # no float frame read after it is judged
                           "key": test.metrics_keys[c.label], "folder": test.metrics_folders[c.label]} for c in mine]
                 gkey = task_key("metrics-of", sorted(it["key"] for it in items))
                 self.plan.tasks[gkey] = Task(gkey, MetricsSpec(

@@ -1,0 +1,75 @@
+"""What a judged test keeps on disk (study.engine.disk, study.engine.judge): the frames the report
+shows as the 8-bit images it shows, no float frame of a pruned run, references in the smaller
+lossless codec, and an estimate that is what the cache then holds."""
+import json
+from pathlib import Path
+
+import numpy as np
+import OpenEXR
+
+from test_estimate import STUDY
+
+
+def test_smallest_codec_keeps_the_smaller_file_bit_for_bit(tmp_path):
+    """'smallest' writes ZIP and Zstandard and keeps the smaller: Zstandard for noise, ZIP for a
+    smooth ramp here (as for sphere_ghosting's references and a smooth scene's), the same bits."""
+    from references.exr import read_exr, write_exr
+    rng = np.random.default_rng(1)
+    noise = (rng.lognormal(0, 1, (64, 96, 3)) * 1e-3).astype(np.float32)
+    ramp = np.broadcast_to(np.linspace(0, 1, 96, dtype=np.float32)[None, :, None], (64, 96, 3))
+    for name, img, want in (("noise", noise, OpenEXR.ZSTD_COMPRESSION), ("ramp", ramp, OpenEXR.ZIP_COMPRESSION)):
+        sizes = {}
+        for codec in ("zip", "zstd", "smallest"):
+            write_exr(tmp_path / f"{name}_{codec}.exr", {"RGB": img}, {"taa_key": "k"}, compression=codec)
+            sizes[codec] = (tmp_path / f"{name}_{codec}.exr").stat().st_size
+        assert sizes["smallest"] == min(sizes["zip"], sizes["zstd"]) < max(sizes["zip"], sizes["zstd"]), sizes
+        h, ch = read_exr(tmp_path / f"{name}_smallest.exr")
+        assert h["compression"] == want and h["taa_key"] == "k"
+        assert np.array_equal(np.stack([ch[c] for c in "RGB"], -1).view(np.uint32), np.asarray(img).view(np.uint32))
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.endswith(".part")) == []   # no temporary left
+
+
+def test_a_pruned_run_keeps_no_float_frame_and_the_report_reads_its_shown_frames_as_judged(tmp_path, monkeypatch):
+    """Judged with its runs kept whole, then judged again pruned: the metrics record holds the
+    report's shown frames as PNGs, each the 8-bit image the float frame gives under the frame's
+    display transform, and the run no float frame at all."""
+    from study.config.profile import get_profile
+    from study.config.techniques import TechniqueConfig
+    from study.engine.plan import shown_frames
+    from study.engine.runner import Study
+    from study.engine.store import Store
+    from study_fixtures import moving_scene
+
+    monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))
+    scene = tmp_path / "long.toml"
+    scene.write_text(moving_scene(frames=28, size=(24, 16)))
+    text = STUDY.format(scenes=json.dumps([str(scene)])).replace("frames = 4", "frames = 28") \
+        + '\n[video]\nmetric = "none"\n'
+    configs = [TechniqueConfig.parse(s) for s in ("taa_baseline", "noaa")]
+
+    def run(keep_all: bool):
+        path = tmp_path / "s.toml"
+        path.write_text(text.replace("sweep = false\n", 'sweep = false\nkeep_frames = "all"\n') if keep_all else text)
+        study = Study(get_profile(str(path)), cache_root=tmp_path / "cache", progress=False)
+        return study.run([str(scene)], configs, agreement=False)
+    whole = run(keep_all=True)
+    store = Store(tmp_path / "cache")
+    cold = whole.ghosts["ghosting"][0]
+    a = cold.artefacts["taa_baseline"]
+    show = shown_frames(cold.frames)
+    assert len(show) == 24 and len(cold.frames) == 28
+    # the float frames through each frame's display transform (the report's images until now)
+    want = {t: whole.artefacts.frame_8bit(a, t, whole.display(cold.scene, t, cold.width, cold.height)) for t in show}
+    assert all(w.dtype == np.uint8 and w.shape == (16, 24, 3) for w in want.values())
+    (Path(a["metrics_folder"]) / "done.json").unlink()          # judged again, now pruned once judged
+    pruned = run(keep_all=False)
+    assert pruned.stats["runs_computed"] == 0 and pruned.stats["metrics_computed"] == 1
+    assert pruned.ghosts["ghosting"][0].per_frame["taa_baseline"] == cold.per_frame["taa_baseline"]
+    run_rec = store.done(Path(a["folder"]), a["run_key"])
+    assert run_rec["files"] == {} and len(run_rec["pruned"]) == 28
+    assert not list(Path(a["folder"]).glob("frame_*.exr"))
+    m = store.done(Path(a["metrics_folder"]), a["metrics_key"])
+    assert sorted(n for n in m["files"] if n.startswith("shown_")) == [f"shown_{t:04d}.png" for t in show]
+    for t in show:
+        got = pruned.artefacts.frame_8bit(a, t, None)          # read back: no float frame, no transform
+        assert np.array_equal(got, want[t]), t
