@@ -73,3 +73,44 @@ def test_a_pruned_run_keeps_no_float_frame_and_the_report_reads_its_shown_frames
     for t in show:
         got = pruned.artefacts.frame_8bit(a, t, None)          # read back: no float frame, no transform
         assert np.array_equal(got, want[t]), t
+
+
+
+def test_a_run_pruned_once_judged_is_judged_as_it_is_made_and_never_writes_a_float_frame(tmp_path, monkeypatch):
+    """Runs pruned once judged are judged by their run task frame by frame (study.engine.run_task):
+    not one float frame is written, their metrics are filed with the shown PNGs, a second study
+    computes nothing, and the figures are those of judging the float frames of runs kept whole."""
+    from study.config.profile import get_profile
+    from study.config.techniques import TechniqueConfig
+    from study.engine.runner import Study
+    from study.engine.store import FolderWriter
+    from study_fixtures import moving_scene
+
+    scene = tmp_path / "moving.toml"
+    scene.write_text(moving_scene(frames=8, size=(24, 16)))
+    configs = [TechniqueConfig.parse(s) for s in ("taa_baseline", "noaa")]
+    written = []
+    real = FolderWriter.add
+    monkeypatch.setattr(FolderWriter, "add", lambda self, name, data: (written.append(name), real(self, name, data)))
+
+    def run(cache: str, keep_all: bool = False):
+        monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / cache))
+        text = STUDY.format(scenes=json.dumps([str(scene)])) + '\n[video]\nmetric = "none"\n'
+        path = tmp_path / "s.toml"
+        path.write_text(text.replace("sweep = false\n", 'sweep = false\nkeep_frames = "all"\n') if keep_all else text)
+        return Study(get_profile(str(path)), cache_root=tmp_path / cache, progress=False).run(
+            [str(scene)], configs, agreement=False)
+    streamed = run("a")
+    assert streamed.stats["runs_computed"] > 0 and streamed.stats["metrics_computed"] > 0
+    assert [n for n in written if n.startswith("frame_")] == [] and any(n.startswith("maps_") for n in written)
+    assert list((tmp_path / "a" / "runs").rglob("*.exr")) == []
+    assert len(list((tmp_path / "a" / "metrics").rglob("shown_*.png"))) > 0
+    written.clear()
+    again = run("a")
+    assert again.stats["runs_computed"] == again.stats["metrics_computed"] == 0 and written == []
+    whole = run("b", keep_all=True)     # every run kept whole: its metrics task judges its float frames
+    assert [n for n in written if n.startswith("frame_")]
+    tests = lambda r: r.statics + r.ghosts["ghosting"] + r.ghosts["ghosting_warm"]     # noqa: E731
+    assert len(tests(streamed)) == 3
+    for a, b in zip(tests(streamed), tests(whole)):
+        assert a.per_frame == b.per_frame and a.uncertainty == b.uncertainty and a.temporal == b.temporal
