@@ -114,3 +114,31 @@ def test_a_run_pruned_once_judged_is_judged_as_it_is_made_and_never_writes_a_flo
     assert len(tests(streamed)) == 3
     for a, b in zip(tests(streamed), tests(whole)):
         assert a.per_frame == b.per_frame and a.uncertainty == b.uncertainty and a.temporal == b.temporal
+
+
+def test_the_plan_prices_shown_frames_as_png_and_no_run_in_flight_where_runs_are_judged_as_made():
+    """study.engine.disk.needs: a column whose shown frames are kept as PNGs (judged as its run is
+    made once pruned) costs its shown frames' PNG bytes once pruned and holds no run in flight; a
+    column the video metric reads keeps float frames and is whole until judged; a reference costs
+    its scene's measured bytes a pixel."""
+    from types import SimpleNamespace as NS
+
+    from study.engine import disk as D
+    w, h = 1600, 900
+    frames = {f: f for f in range(100)}
+    test = NS(scene="sphere_ghosting", protocol=NS(name="ghosting"), width=w, height=h,
+              run_keys={"taa": "r1", "vdp": "r2"}, frame_times={"taa": frames, "vdp": frames},
+              keep={"taa": list(range(0, 100, 4)), "vdp": list(range(0, 100, 4))},
+              maps_for={"taa": [], "vdp": [99]}, metrics_keys={"taa": "m1", "vdp": "m2"})
+    run = NS(kind="run", spec=NS(keys={"taa": "r1", "vdp": "r2"}))
+    metrics = NS(kind="metrics", spec=NS(items=[{"key": "m1", "shown_8bit": True}, {"key": "m2", "shown_8bit": False}]))
+    refs = [NS(kind="reference", likely_cached=False, spec=NS(width=w, height=h, settings={}, scene=s))
+            for s in ("sphere_ghosting", "hairball_rotating_unlit", "a_scene_never_measured")]
+    need = D.needs(NS(tasks={"a": run, "b": metrics, **{f"ref{i}": r for i, r in enumerate(refs)}}, tests=[test]))
+    px, f = w * h, D.FILE_BYTES
+    assert need["references"] == px * (24 + 12 + D.REFERENCE_BYTES) + 3 * f
+    whole, kept = need["tests"][("sphere_ghosting", "ghosting")]
+    assert whole == 2 * 100 * (px * D.FRAME_BYTES + f)
+    assert kept == 25 * (px * D.SHOWN_BYTES + f) + 25 * (px * D.FRAME_BYTES + f)
+    assert need["run"] == 75 * (px * D.FRAME_BYTES + f)             # the video column's, pruned once judged
+    assert need["maps"] == px * D.MAPS_BYTES + f
