@@ -79,8 +79,9 @@ def locked_records(store, items: list, locks) -> tuple[dict, list]:
         firsts.setdefault(it["key"], it)
     for it in firsts.values():
         rec = store.done(Path(it["folder"]), it["key"])
-        if rec is not None:       # judged as its run was made (study.engine.run_task): computed this round
-            records[it["key"]] = {"data": rec["data"], "computed": bool(rec.get("judged_with_run"))}
+        if rec is not None:       # judged as its run was made, by this plan's run task: computed this round
+            records[it["key"]] = {"data": rec["data"], "computed": it.get("mark") is not None
+                                  and rec.get("judged_with_run") == it.get("mark")}
         else:
             todo.append(it)
     return records, todo
@@ -188,7 +189,7 @@ class Judge:
                     "temporal_u": temporal_u, "references": st["references"]}
             for name, maps in st["maps"].items():
                 wr.add(name, maps)
-            rec = wr.seal(it["key"], {"data": data, **({"judged_with_run": True} if self.with_run else {})})
+            rec = wr.seal(it["key"], {"data": data, **({"judged_with_run": it.get("mark")} if self.with_run else {})})
             if it.get("keep") is not None:   # judged: only what the report shows stays (study.engine.plan)
                 # as shown, above; as float frames where the video metric reads them too
                 keep = set() if it.get("shown_8bit") else {f"frame_{f:04d}.exr" for f in it["keep"]}

@@ -14,6 +14,7 @@ and figures made from their results are study.reporting's.
 """
 from __future__ import annotations
 
+import secrets
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -132,7 +133,7 @@ class Planner:
         self.store = Store(Path(ctx.cache_root))
         self.plan = Plan()
         self._run_task_of: dict = {}     # run key -> key of the run task that makes it
-        self._judge_of, self._ref_keys = {}, {}     # run key -> the metrics its run task judges
+        self._judge_of, self._ref_keys, self._mark = {}, {}, secrets.token_hex(8)   # run key -> what its task judges
         self._feeds_of: dict = {}        # run key -> [(metrics folder, key)] the planned run is judged into
         self._metrics_task_of: dict = {}  # metrics key -> key of the metrics task that judges it
 
@@ -244,8 +245,8 @@ class Planner:
             need_run = [c for c in need_run if c.label not in shared]
             # a run pruned once judged is judged as it is made (study.engine.run_task): no float frame on disk
             streams = [c for c in missing if self.prunes(test) and test.keep[c.label] is not None and c.label not in vlabels
-                       and test.metrics_keys[c.label] not in self._metrics_task_of
-                       and (c in need_run or self._judge_of.get(test.run_keys[c.label]) is not None)]
+                       and test.metrics_keys[c.label] not in self._metrics_task_of and (
+                           c in need_run or self._judge_of.get(test.run_keys[c.label]) is not None)]
             for c in missing:     # the metrics each planned run feeds (run_task skips a run judged meanwhile)
                 if test.run_keys[c.label] in self._feeds_of:
                     self._feeds_of[test.run_keys[c.label]].append((test.metrics_folders[c.label], test.metrics_keys[c.label]))
@@ -296,11 +297,10 @@ class Planner:
 
     def _item(self, test: Test, c, vlabels: set) -> dict:
         """The metrics item of column `c` (study.engine.judge.metrics_task lists its fields)."""
-        return {"label": c.label, "run_folder": test.run_folders[c.label], "run_key": test.run_keys[c.label],
+        return {"label": c.label, "run_folder": test.run_folders[c.label], "run_key": test.run_keys[c.label], "mark": self._mark,
                 "frame_times": test.frame_times[c.label], "maps_for": test.maps_for[c.label],
                 "keep": test.keep[c.label] if self.prunes(test) else None, "hdr": test.protocol.hdr,
-                "shown_8bit": c.label not in vlabels,     # no float frame read after it is judged
-                "key": test.metrics_keys[c.label], "folder": test.metrics_folders[c.label]}
+                "shown_8bit": c.label not in vlabels, "key": test.metrics_keys[c.label], "folder": test.metrics_folders[c.label]}
 
     def _add_video(self, spec, scene, test, configs, at, made, ref_keys, disp_keys) -> None:
         """The JOD of each column the video metric judges, once this round's runs are made (`at`:
