@@ -150,7 +150,7 @@ class ReferenceCache:
                 chans[f"sample_lo.{c}"], chans[f"sample_hi.{c}"] = ref.sample_lo[..., k], ref.sample_hi[..., k]
         if ref.reused is not None:
             chans["reused"] = ref.reused.astype(np.float32)
-        write_exr(path, chans, header)
+        write_exr(path, chans, header, compression="smallest")   # ZIP or Zstandard (references.exr)
 
     def has(self, scene: ResolvedScene, t: int, width: int, height: int, *, se_bound_lsb=S.SE_BOUND_LSB,
             target_noise_db=S.TARGET_NOISE_DB, spp_per_pass=2, held_out=False, reuse=False, reuse_since=0) -> bool:

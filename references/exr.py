@@ -1,10 +1,13 @@
 """OpenEXR I/O (float32, lossless: ZIP or Zstandard), written atomically: a temporary file in the
 same folder renamed into place, so a reader never sees a half-written image.
 
-Every file is stored losslessly (a figure computed from it must not move). ZIP is the smallest for
-images (references and their halves: 0.32 of the raw float32 bytes on the quick study's 320x180
-files, run frames 0.27; Zstandard 1-9 % larger, PIZ 45 %, HTJ2K 70 %); for the SSIM/FLIP maps
-Zstandard is 15 % smaller than ZIP (docs/performance.md, "Disk").
+Every file is stored losslessly (a figure computed from it must not move). Which codec is smaller
+depends on the content: ZIP for smooth images (run frames: 0.27 of the raw float32 bytes on the
+quick study's 320x180 files; a smooth scene's reference), Zstandard for noisy ones (sphere_ghosting's
+references, whose standard errors and floor are path-traced noise: 28 % smaller than ZIP; the
+SSIM/FLIP maps: 15 %). `compression="smallest"` writes both and keeps the smaller file (a
+reference: its render costs minutes, the second encoding a fraction of a second; docs/performance.md,
+"Disk"). PIZ, HTJ2K and RLE were larger on every file measured.
 
 OpenEXR's Python binding prints some warnings (e.g. "Exception raised reading pixel data" for a
 truncated file) through Python's sys.stdout, which would corrupt a `--json` document, and its C
@@ -138,8 +141,10 @@ def _new_temp(folder: Path, stem: str) -> Path:
             continue
 
 
-# the lossless codecs a file may be written with (OpenEXR >= 3.4 reads Zstandard)
+# the lossless codecs a file may be written with (OpenEXR >= 3.4 reads Zstandard); "smallest":
+# whichever of them makes the smaller file
 LOSSLESS = {"zip": OpenEXR.ZIP_COMPRESSION, "zstd": OpenEXR.ZSTD_COMPRESSION}
+CODECS = (*LOSSLESS, "smallest")
 
 
 def write_exr(path: Path | str, channels: dict[str, np.ndarray], header: dict | None = None,
@@ -154,23 +159,27 @@ def write_exr(path: Path | str, channels: dict[str, np.ndarray], header: dict | 
         name -> (H, W) array, or 'RGB' -> (H, W, 3). Values are stored as float32, bit for bit.
     header : dict, optional
         Extra header attributes.
-    compression : {'zip', 'zstd'}
-        The lossless codec (LOSSLESS).
+    compression : {'zip', 'zstd', 'smallest'}
+        The lossless codec (LOSSLESS), or 'smallest': each of them tried, the smaller file kept.
     """
     path = Path(path)
-    if compression not in LOSSLESS:
-        raise ExrError(f"{path}: compression must be one of {sorted(LOSSLESS)} (lossless), not {compression!r}")
+    if compression not in CODECS:
+        raise ExrError(f"{path}: compression must be one of {list(CODECS)} (lossless), not {compression!r}")
     path.parent.mkdir(parents=True, exist_ok=True)
-    h = {"compression": LOSSLESS[compression], "type": OpenEXR.scanlineimage}
-    h.update(header or {})
     data = {k: np.ascontiguousarray(v, np.float32) for k, v in channels.items()}
-    tmp = _new_temp(path.parent, path.stem)
+    tries = []
     try:
-        _call("write", path, lambda: OpenEXR.File(h, data).write(str(tmp)))
-        os.replace(tmp, path)
+        for codec in LOSSLESS if compression == "smallest" else (compression,):
+            h = {"compression": LOSSLESS[codec], "type": OpenEXR.scanlineimage}
+            h.update(header or {})
+            tmp = _new_temp(path.parent, path.stem)
+            tries.append(tmp)
+            _call("write", path, lambda h=h, tmp=tmp: OpenEXR.File(h, data).write(str(tmp)))
+        os.replace(min(tries, key=os.path.getsize), path)
     finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+        for tmp in tries:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
 
 
 def read_exr(path: Path | str) -> tuple[dict, dict[str, np.ndarray]]:

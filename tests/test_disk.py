@@ -53,7 +53,7 @@ def test_kept_files_round_trip_bit_for_bit_in_each_lossless_codec(tmp_path):
         write_exr(tmp_path / f"{name}.exr", {"RGB": noise, "flip_ldr": noise[..., 0]}, compression=name)
         _, ch = read_exr(tmp_path / f"{name}.exr")
         assert all(_same_bits(ch[c], noise[..., k]) for k, c in enumerate("RGB")) and _same_bits(ch["flip_ldr"], noise[..., 0])
-    with pytest.raises(ExrError, match=r"bad\.exr: compression must be one of \['zip', 'zstd'\] .*'pxr24'"):
+    with pytest.raises(ExrError, match=r"bad\.exr: compression must be one of \['zip', 'zstd', 'smallest'\] .*'pxr24'"):
         write_exr(tmp_path / "bad.exr", {"RGB": noise}, compression="pxr24")
     assert not (tmp_path / "bad.exr").exists()
     # a folder's maps are Zstandard, its frames ZIP; both read back as written, and maps are smaller
@@ -184,10 +184,10 @@ def test_a_study_short_of_disk_prunes_its_largest_runs_and_makes_them_again_with
     art = Artefacts(tmp_path / "lean")
     for res in lean.statics:
         for a in res.artefacts.values():
-            assert all(art.frame(a, f).shape == (res.height, res.width, 3) for f in a["maps_for"])
+            assert all(art.frame_8bit(a, f, None).shape == (res.height, res.width, 3) for f in a["maps_for"])
     for g in (g for gs in lean.ghosts.values() for g in gs):
         for a in g.artefacts.values():
-            assert all(art.frame(a, t).shape == (g.height, g.width, 3) for t in shown_frames(g.frames))
+            assert all(art.frame_8bit(a, t, None).shape == (g.height, g.width, 3) for t in shown_frames(g.frames))
     # nothing fits: a named error before any task (no reference rendered)
     monkeypatch.setattr(D, "free_bytes", lambda folder: floor - 1)
     s4, _, _ = _study(tmp_path / "full", scenes)

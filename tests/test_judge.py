@@ -121,13 +121,17 @@ def test_runs_keep_only_the_frames_the_report_reads_and_are_remade_when_judged_a
         rec = store.done(Path(a["folder"]), a["run_key"])
         return sorted(rec["files"]), sorted(rec.get("pruned", [])), a
     (static,) = first.statics
-    kept, pruned, _ = files(static, "taa_baseline")
-    assert kept == ["frame_0016.exr"] and pruned == ["frame_0001.exr", "frame_0004.exr"]   # the one view
+    def shown(a):      # the frames the report shows, kept by the metrics record as it shows them
+        rec = store.done(Path(a["metrics_folder"]), a["metrics_key"])
+        return sorted(n for n in rec["files"] if n.startswith("shown_"))
+    kept, pruned, a = files(static, "taa_baseline")
+    assert kept == [] and pruned == ["frame_0001.exr", "frame_0004.exr", "frame_0016.exr"]
+    assert shown(a) == ["shown_0016.png"]                                          # the one view
     cold = first.ghosts["ghosting"][0]
-    kept, pruned, _ = files(cold, "taa_baseline")
+    kept, pruned, a = files(cold, "taa_baseline")
     show = shown_frames(list(range(30)))
     assert len(show) == 24 and show[0] == 0 and show[-1] == 29
-    assert kept == [f"frame_{f:04d}.exr" for f in show] and len(pruned) == 6
+    assert kept == [] and len(pruned) == 30 and shown(a) == [f"shown_{f:04d}.png" for f in show]
     first_cold = cold.per_frame["taa_baseline"]
     assert len(first_cold) == 30                                                # every frame judged
 

@@ -49,15 +49,16 @@ def test_garbage_maps_and_a_swapped_frame_are_detected_and_re_made(study):
     tmp, args = study
     maps = next((tmp / "cache" / "metrics").rglob("maps_0256.exr"))
     maps.write_bytes(b"garbage" * 100)
-    fxaa_frame = next(p for p in (tmp / "cache" / "runs").rglob("frame_0256.exr")
-                      if json.loads((p.parent / "done.json").read_text())["technique"] == "fxaa")
-    taa_frame = next(p for p in (tmp / "cache" / "runs").rglob("frame_0256.exr")
-                     if json.loads((p.parent / "done.json").read_text())["technique"] == "taa_baseline")
-    taa_frame.write_bytes(fxaa_frame.read_bytes())             # a valid EXR, the wrong technique's
+    # the frame the report shows, kept by the metrics record (its run keeps none: study.engine.judge)
+    other = maps.parent / "shown_0256.png"
+    shown = next(p for p in (tmp / "cache" / "metrics").rglob("shown_0256.png") if p.parent != maps.parent)
+    assert shown.read_bytes() != other.read_bytes()
+    shown.write_bytes(other.read_bytes())                      # a valid PNG, the other technique's
     err = run_cli(args).stderr
-    assert f"{maps}: expected SHA-256" in err and f"{taa_frame}: expected SHA-256" in err
+    assert f"{maps}: expected SHA-256" in err and f"{shown}: expected SHA-256" in err
     s = summary(tmp / "out")
-    assert s["runs_computed"] == 1 and s["metrics_computed"] >= 1
+    # each judged again, from its run made again (a run pruned once judged keeps no frame)
+    assert s["runs_computed"] == 2 and s["metrics_computed"] == 2
     run_cli(args)                                               # all intact again
     s = summary(tmp / "out")
     assert s["runs_computed"] == 0 and s["metrics_computed"] == 0

@@ -1,16 +1,23 @@
 """The disk a study's plan needs in the cache, and which tests' runs stay whole while they refine.
 
 Under the figures' rule a test's runs keep every judged frame until the test settles, so that a
-finer reference is judged without making the run again. At 1600x900 a judged frame is ~10 MB
+finer reference is judged without making the run again. At 1600x900 a judged frame is ~9 MB
 (float32 EXR, ZIP) and the full profile judges ~19,000 of them: ~200 GB whole. Its first run
 filled this machine's disk after 75 minutes. The tests whose runs do not fit beside everything
-else the plan writes are pruned once judged instead (to the frames the report reads), and their
-runs are made again if their references are refined: time, not disk; a profile may ask for that
-of every test (`runs = "pruned"`, the thesis profile). A plan that cannot fit even so stops
-before computing anything, naming the folder and the sizes.
+else the plan writes are pruned once judged instead, and their runs are made again if their
+references are refined: time, not disk; a profile may ask for that of every test
+(`runs = "pruned"`, the thesis profile). A run pruned once judged is judged as it is made
+(study.engine.run_task): it never holds a float frame, and what the report shows of it (a ghosting
+test's 24 slider frames, a static view) is kept as the 8-bit PNG it shows, in its metrics record.
+A plan that cannot fit even so stops before computing anything, naming the folder and the sizes.
 
-Every file is lossless (a figure computed from it must not move): the sizes below are real
-files' (docs/performance.md, "Disk").
+What a settled test keeps: its references (the expensive asset, re-keyed only by code changes;
+ZIP or Zstandard, whichever is smaller), its metrics records with their SSIM/FLIP maps (the
+report's and paper's map images and EXR) and the PNGs of the frames the report shows; its runs'
+done records (what a later study checks) with no frame, unless kept whole (`keep_frames = "all"`,
+the video metric's columns, or runs kept whole while refining, pruned to their shown frames once
+settled). Every file is lossless (a figure computed from it must not move): the sizes below are
+real files' (docs/performance.md, "Disk"; scripts/measure_disk.py).
 """
 from __future__ import annotations
 
@@ -19,19 +26,27 @@ from pathlib import Path
 
 from study.engine.tasks import TaskError
 
-# Bytes a pixel takes on disk, measured on real files (the references' ZIP, the maps' Zstandard):
-# a run's judged frame (RGB; 320x180: 1.07 B a channel over the quick study's 9358, the noisiest
-# 2.9; 1600x900: 5.9-6.4 B a pixel), a reference (image, standard errors, floor, halves'
-# difference, spp; 320x180: 20.2 B a pixel over the quick study's 385, hard_edges 9.9,
-# sphere_ghosting's noisy floor 41; 1600x900: 10-15.3), a reference's sample extremes, stored only
-# for reuse (references.cache: sphere_ghosting 17, hard_edges 1), a frame's maps (SSIM, FLIP LDR
-# and HDR; 320x180: 1.81 B a channel, Zstandard 0.85 of ZIP's 2.14; 1600x900: ZIP's 12 B x 0.85)
-FRAME_BYTES, REFERENCE_BYTES, EXTREMES_BYTES, MAPS_BYTES = 7, 24, 18, 11
+# Bytes a pixel takes on disk, measured on real 1600x900 files (scripts/measure_disk.py): a run's
+# judged frame (float RGB, ZIP: 5.9-6.4 for the thesis scenes' TAA frames), a reference (image,
+# standard errors, floor, halves' difference, spp; ZIP or Zstandard, the smaller: sphere_ghosting
+# 23.4, whose floor's path-traced noise ZIP kept at 36.7; hairball_rotating_unlit 11.0, hard_edges 6.3,
+# pipe 1.2),
+# a reference's sample extremes, stored only for reuse (references.cache: sphere_ghosting 17,
+# hard_edges 1, ZIP), a frame's maps (SSIM, FLIP LDR and HDR, Zstandard: 0.8-6.3 measured on No
+# AA's frames, 10 on the noisiest), a frame shown by the report, kept as its 8-bit PNG
+# (0.02-0.14 for a raster frame, SHOWN_BYTES for the most detailed TAA output measured)
+FRAME_BYTES, REFERENCE_BYTES, EXTREMES_BYTES, MAPS_BYTES, SHOWN_BYTES = 7, 24, 18, 11, 1
+# a reference's bytes a pixel where measured at 1600x900 (the smaller of ZIP and Zstandard, rounded
+# up): the thesis's scenes; the nine static ones and hairball_rotating_lit took 10-15.3 in ZIP
+REFERENCE_BYTES_OF = {"sphere_ghosting": 24, "hairball_rotating_unlit": 12, "pipe": 2, "hard_edges": 7,
+                      **dict.fromkeys(("pipe_tilted", "blinds", "arched_window", "atrium", "flowers",
+                                       "hairball_unlit", "hairball_lit", "hairball_rotating_lit"), 16)}
 FILE_BYTES = 4096             # each file's header and offsets (a reference's header is ~1.8 KB)
 # left free for everything else (logs, the report, the OS): a quarter of what the plan keeps,
 # between 64 MB and 2 GB (a fixed 2 GB refused a 250 KB study on a small disk)
 MARGIN, MARGIN_MIN, MARGIN_SHARE = 2 * 2 ** 30, 64 * 2 ** 20, 0.25
-IN_FLIGHT = 4                 # runs judged at once (whole between their run and metrics tasks)
+IN_FLIGHT = 4                 # runs judged at once (whole between their run and metrics tasks) but
+                              # those judged as they are made
 
 
 class DiskError(TaskError):
@@ -40,11 +55,15 @@ class DiskError(TaskError):
 
 def needs(plan) -> dict:
     """What the plan writes: {'references', 'maps': bytes, 'tests': (scene, protocol) -> (bytes
-    of its new runs whole, bytes once pruned to their kept frames), 'run': the most one run's
-    pruning frees}. A run two tests read counts once, for the first."""
-    refs = sum(file_bytes("reference", t.spec.width, t.spec.height, bool(t.spec.settings.get("reuse")))
+    of its new runs whole, bytes once pruned to what the report shows), 'run': the most one run's
+    pruning frees, of the runs written whole before they are judged}. A run two tests read counts
+    once, for the first. A run whose shown frames are kept as 8-bit PNGs (every run but those the
+    video metric reads) is judged as it is made once pruned: never whole on disk then."""
+    refs = sum(file_bytes("reference", t.spec.width, t.spec.height, bool(t.spec.settings.get("reuse")), t.spec.scene)
                for t in plan.tasks.values() if t.kind == "reference" and not t.likely_cached)
     made = {k for t in plan.tasks.values() if t.kind == "run" for k in t.spec.keys.values()}   # runs it makes
+    as_png = {it["key"]: it.get("shown_8bit", True) for t in plan.tasks.values() if t.kind == "metrics"
+              for it in t.spec.items}
     seen, tests, maps, run = set(), {}, 0, 0
     for test in plan.tests:
         px = test.width * test.height
@@ -56,7 +75,10 @@ def needs(plan) -> dict:
             n = len(test.frame_times[label])
             k = n if test.keep[label] is None else len(test.keep[label])
             frame = file_bytes("frame", test.width, test.height)
-            whole, kept, run = whole + n * frame, kept + k * frame, max(run, (n - k) * frame)
+            if as_png.get(test.metrics_keys[label], True):      # judged as made once pruned, kept as shown
+                whole, kept = whole + n * frame, kept + k * file_bytes("shown", test.width, test.height)
+            else:
+                whole, kept, run = whole + n * frame, kept + k * frame, max(run, (n - k) * frame)
             maps += len(test.maps_for[label]) * file_bytes("maps", test.width, test.height)
         if whole:
             k = (test.scene, test.protocol.name)
@@ -65,19 +87,23 @@ def needs(plan) -> dict:
     return {"references": refs, "maps": maps, "tests": tests, "run": run}
 
 
-def file_bytes(kind: str, width: int, height: int, extremes: bool = False) -> int:
+def file_bytes(kind: str, width: int, height: int, extremes: bool = False, scene: str | None = None) -> int:
     """The bytes one file takes on disk, at most (as measured: see the constants).
 
     Parameters
     ----------
-    kind : {'frame', 'reference', 'maps'}
-        A run's judged frame, a reference, or a judged frame's SSIM/FLIP maps.
+    kind : {'frame', 'reference', 'maps', 'shown'}
+        A run's judged frame, a reference, a judged frame's SSIM/FLIP maps, or a frame the report
+        shows kept as its 8-bit PNG.
     width, height : int
         Its size in pixels.
     extremes : bool
         A reference that stores its sample extremes (rendered for reuse, references.cache).
+    scene : str, optional
+        A reference's scene: its measured size (REFERENCE_BYTES_OF) if it has one.
     """
-    per = {"frame": FRAME_BYTES, "reference": REFERENCE_BYTES, "maps": MAPS_BYTES}[kind]
+    per = {"frame": FRAME_BYTES, "reference": REFERENCE_BYTES_OF.get(scene, REFERENCE_BYTES), "maps": MAPS_BYTES,
+           "shown": SHOWN_BYTES}[kind]
     return width * height * (per + (EXTREMES_BYTES if extremes else 0)) + FILE_BYTES
 
 

@@ -17,6 +17,11 @@ A technique frame's figures against one reference (and display transform) are al
 references are refined, and the frames whose reference did not change (at 320x180, 22 of
 hairball_rotating_lit's 24 in its last round) take their figures from there instead of judging
 again; only the temporal measure, which needs every frame in order, reads them all.
+
+A run pruned once judged (its item's `keep`) keeps no float frame: the frames the report shows are
+kept instead, by its metrics record, as the 8-bit display images they were judged as
+(`shown_NNNN.png`, lossless for those 8 bits: at 1600x900 ~1.5 MB where the float frame took ~9;
+docs/scale.md, "Disk"). The report and the paper show nothing else of a run.
 """
 from __future__ import annotations
 
@@ -48,7 +53,9 @@ def metrics_task(ctx, scene_spec: str, w: int, h: int, items: list, ref_settings
                  deps=()) -> dict:
     """items: one per technique, {run_folder, run_key, frame_times (frame id -> scene time),
     maps_for (frame ids whose maps are kept), keep (frame ids of the run to keep once judged, or
-    None for all), hdr (judged in linear HDR too: Protocol.hdr), key, folder}. `ref_settings`: scene time -> the settings of its reference (each
+    None for all), shown_8bit (those kept as the 8-bit images the report shows, in the metrics
+    folder, and no float frame; else as float frames), hdr (judged in linear HDR too: Protocol.hdr),
+    key, folder}. `ref_settings`: scene time -> the settings of its reference (each
     instant of a test has its own bound: study.engine.precision). Returns the records by metrics key."""
     store = _setup(ctx)
     scene = load_scene(scene_spec)
@@ -72,8 +79,9 @@ def locked_records(store, items: list, locks) -> tuple[dict, list]:
         firsts.setdefault(it["key"], it)
     for it in firsts.values():
         rec = store.done(Path(it["folder"]), it["key"])
-        if rec is not None:
-            records[it["key"]] = {"data": rec["data"], "computed": False}
+        if rec is not None:       # judged as its run was made, by this plan's run task: computed this round
+            records[it["key"]] = {"data": rec["data"], "computed": it.get("mark") is not None
+                                  and rec.get("judged_with_run") == it.get("mark")}
         else:
             todo.append(it)
     return records, todo
@@ -81,9 +89,6 @@ def locked_records(store, items: list, locks) -> tuple[dict, list]:
 
 def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict, display_settings: dict):
     import numpy as np
-
-    from display import DisplayTransform
-    from references import ReferenceCache
 
     from study.engine.store import TamperError
     runs = []
@@ -99,51 +104,97 @@ def _judge(store, ctx, scene, w, h, items: list, ref_settings: dict, display_set
         times = {int(f): int(t) for f, t in it["frame_times"].items()}
         for f in run["frames"]:
             by_time.setdefault(times[f], []).append((i, f))
-    cache = ReferenceCache(Path(ctx.cache_root))
-    state = [{"per_frame": {}, "uncertainty": {}, "maps": {}, "references": {},
-              "temporal": {h: T.TemporalInstability() for h in HALVES}} for _ in items]
-    known = [FrameFigures(store, scene.name, it["run_key"], it.get("hdr", True)) for it in items]
+    judge = Judge(store, ctx, scene, w, h, items, [r["output_space"] for r in runs], ref_settings, display_settings)
     for t in sorted(by_time):
-        ref = cache.get(scene, t, w, h, **ref_settings[t])[0]
-        # one transform for all three; at a test's probe the reference is the probe: not read twice
-        # (else display_of's, its reference's key kept for FrameFigures)
-        dref = ref if display_settings == ref_settings[t] else display_reference(cache, scene, t, w, h, display_settings)
-        disp = DisplayTransform.from_reference(dref.image)
-        refs = {hv: (*r, {}) for hv, r in judged_references(ref, disp).items()}   # {}: SSIM's and FLIP's memo
         for i, f in sorted(by_time[t]):
-            it, run, st = items[i], runs[i], state[i]
+            it, run = items[i], runs[i]
             try:
                 ch = store.read_image(Path(it["run_folder"]), f"frame_{f:04d}.exr", run)
             except TamperError as exc:
                 store.invalidate(Path(it["run_folder"]), str(exc))
                 raise TaskError(f"{exc}: the run was invalidated; run the study again to re-make it") from None
-            x = np.stack([ch[c] for c in "RGB"], -1)
-            x_lin, x_disp, x8 = disp.output(x, run["output_space"])
-            keep = [hv == "" and f in it["maps_for"] for hv in refs]
-            figs = None if any(keep) else known[i].get(f, ref.key, dref.key)
-            if figs is None:
-                judged = M.all_metrics_against(list(refs.values()), x_lin, x_disp, x8, want_maps=keep,
-                                               hdr=it.get("hdr", True))
-                figs = {hv: got for hv, (got, _) in zip(refs, judged)}
-                st["maps"].update({f"maps_{f:04d}.exr": maps for (_, maps), k in zip(judged, keep) if k})
-                known[i].put(f, ref.key, dref.key, figs)
-            for hv, (_, _, r8, _) in refs.items():
-                st["temporal"][hv].add(r8, x8)
-            st["per_frame"][str(f)], st["uncertainty"][str(f)] = U.jackknife(figs[""], figs["a"], figs["b"])
-            st["references"][str(t)] = ref.key
-    for it, st, kn in zip(items, state, known):
-        kn.save()
-        tm = {hv: (acc.value() if acc.frames > 1 else None) for hv, acc in st["temporal"].items()}
-        temporal = temporal_u = None
-        if tm[""] is not None:
-            c, u = U.jackknife(*({"temporal": tm[hv]} for hv in HALVES))
-            temporal, temporal_u = c["temporal"], u["temporal"]
-        data = {"per_frame": st["per_frame"], "uncertainty": st["uncertainty"], "temporal": temporal,
-                "temporal_u": temporal_u, "references": st["references"]}
-        rec = store.save_folder(Path(it["folder"]), it["key"], st["maps"], {"data": data})
-        if it.get("keep") is not None:   # judged: only the frames the report shows stay (study.engine.plan)
-            store.prune(Path(it["run_folder"]), it["run_key"], {f"frame_{f:04d}.exr" for f in it["keep"]})
-        yield it, rec["data"], kn.reused
+            judge.add(i, f, np.stack([ch[c] for c in "RGB"], -1))
+    yield from judge.finish()
+
+
+class Judge:
+    """A test's techniques judged frame by frame as they come (`add`), by the metrics task from its
+    runs' files or by the run task as it makes them (study.engine.run_task: no float frame is
+    written), then filed (`finish`). Frames come in the order of their scene times (each run's in
+    order: the temporal measure needs it); each reference is read once, when its time comes.
+    `spaces`: each item's output space (display.DisplayTransform.output)."""
+
+    def __init__(self, store, ctx, scene, w: int, h: int, items: list, spaces: list, ref_settings: dict,
+                 display_settings: dict, with_run: bool = False):
+        from references import ReferenceCache
+        self.store, self.scene, self.w, self.h, self.items, self.spaces = store, scene, w, h, items, spaces
+        self.ref_settings, self.display_settings = ref_settings, display_settings
+        self.cache = ReferenceCache(Path(ctx.cache_root))
+        self.times = [{int(f): int(t) for f, t in it["frame_times"].items()} for it in items]
+        self.state = [{"per_frame": {}, "uncertainty": {}, "maps": {}, "references": {},
+                       "temporal": {h: T.TemporalInstability() for h in HALVES}} for _ in items]
+        # a pruned run's shown frames, written as they are judged (no whole run's images held at once)
+        self.writers = [store.writer(Path(it["folder"])) for it in items]
+        self.shown = [set(it["keep"]) if it.get("keep") is not None and it.get("shown_8bit") else set()
+                      for it in items]
+        self.known = [FrameFigures(store, scene.name, it["run_key"], it.get("hdr", True)) for it in items]
+        self.t, self.with_run = None, with_run      # with_run: judged by the run task as it made the run
+
+    def _at(self, t: int) -> None:
+        from display import DisplayTransform
+        settings, cache = self.ref_settings[t], self.cache
+        self.ref = cache.get(self.scene, t, self.w, self.h, **settings)[0]
+        # one transform for all three; at a test's probe the reference is the probe: not read twice
+        # (else display_of's, its reference's key kept for FrameFigures)
+        self.dref = self.ref if self.display_settings == settings else display_reference(
+            cache, self.scene, t, self.w, self.h, self.display_settings)
+        self.disp = DisplayTransform.from_reference(self.dref.image)
+        self.refs = {hv: (*r, {}) for hv, r in judged_references(self.ref, self.disp).items()}   # {}: the memos
+        self.t = t
+
+    def add(self, i: int, f: int, x) -> None:
+        """Judge frame `f` (an (H, W, 3) float image) of item `i`."""
+        t = self.times[i][f]
+        if t != self.t:
+            self._at(t)
+        it, st, ref, dref, refs = self.items[i], self.state[i], self.ref, self.dref, self.refs
+        x_lin, x_disp, x8 = self.disp.output(x, self.spaces[i])
+        if f in self.shown[i]:
+            self.writers[i].add_png(f"shown_{f:04d}.png", x8)
+        keep = [hv == "" and f in it["maps_for"] for hv in refs]
+        figs = None if any(keep) else self.known[i].get(f, ref.key, dref.key)
+        if figs is None:
+            judged = M.all_metrics_against(list(refs.values()), x_lin, x_disp, x8, want_maps=keep,
+                                           hdr=it.get("hdr", True))
+            figs = {hv: got for hv, (got, _) in zip(refs, judged)}
+            st["maps"].update({f"maps_{f:04d}.exr": maps for (_, maps), k in zip(judged, keep) if k})
+            self.known[i].put(f, ref.key, dref.key, figs)
+        for hv, (_, _, r8, _) in refs.items():
+            st["temporal"][hv].add(r8, x8)
+        st["per_frame"][str(f)], st["uncertainty"][str(f)] = U.jackknife(figs[""], figs["a"], figs["b"])
+        st["references"][str(t)] = ref.key
+
+    def finish(self):
+        """File each item's metrics (and prune its run to what the report shows, if asked); yields
+        (item, data, frames whose figures an earlier round's judging gave)."""
+        store = self.store
+        for it, st, kn, wr in zip(self.items, self.state, self.known, self.writers):
+            kn.save()
+            tm = {hv: (acc.value() if acc.frames > 1 else None) for hv, acc in st["temporal"].items()}
+            temporal = temporal_u = None
+            if tm[""] is not None:
+                c, u = U.jackknife(*({"temporal": tm[hv]} for hv in HALVES))
+                temporal, temporal_u = c["temporal"], u["temporal"]
+            data = {"per_frame": st["per_frame"], "uncertainty": st["uncertainty"], "temporal": temporal,
+                    "temporal_u": temporal_u, "references": st["references"]}
+            for name, maps in st["maps"].items():
+                wr.add(name, maps)
+            rec = wr.seal(it["key"], {"data": data, **({"judged_with_run": it.get("mark")} if self.with_run else {})})
+            if it.get("keep") is not None:   # judged: only what the report shows stays (study.engine.plan)
+                # as shown, above; as float frames where the video metric reads them too
+                keep = set() if it.get("shown_8bit") else {f"frame_{f:04d}.exr" for f in it["keep"]}
+                store.prune(Path(it["run_folder"]), it["run_key"], keep)
+            yield it, rec["data"], kn.reused
 
 
 class FrameFigures:

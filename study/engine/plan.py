@@ -14,6 +14,7 @@ and figures made from their results are study.reporting's.
 """
 from __future__ import annotations
 
+import secrets
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -132,7 +133,7 @@ class Planner:
         self.store = Store(Path(ctx.cache_root))
         self.plan = Plan()
         self._run_task_of: dict = {}     # run key -> key of the run task that makes it
-        self._ref_keys: dict = {}
+        self._judge_of, self._ref_keys, self._mark = {}, {}, secrets.token_hex(8)   # run key -> what its task judges
         self._feeds_of: dict = {}        # run key -> [(metrics folder, key)] the planned run is judged into
         self._metrics_task_of: dict = {}  # metrics key -> key of the metrics task that judges it
 
@@ -242,6 +243,10 @@ class Planner:
             shared = {c.label: self._run_task_of[test.run_keys[c.label]] for c in need_run
                       if test.run_keys[c.label] in self._run_task_of}
             need_run = [c for c in need_run if c.label not in shared]
+            # a run pruned once judged is judged as it is made (study.engine.run_task): no float frame on disk
+            streams = [c for c in missing if self.prunes(test) and test.keep[c.label] is not None and c.label not in vlabels
+                       and test.metrics_keys[c.label] not in self._metrics_task_of and (
+                           c in need_run or self._judge_of.get(test.run_keys[c.label]) is not None)]
             for c in missing:     # the metrics each planned run feeds (run_task skips a run judged meanwhile)
                 if test.run_keys[c.label] in self._feeds_of:
                     self._feeds_of[test.run_keys[c.label]].append((test.metrics_folders[c.label], test.metrics_keys[c.label]))
@@ -249,14 +254,27 @@ class Planner:
             if need_run:
                 rdeps = tuple(self._reference(spec, scene, t, w, h, self.display_settings) for t in kept_t) \
                     if any(c.make().inputs.display for c in need_run) else ()
-                rkey = task_key("runs", sorted(test.run_keys[c.label] for c in need_run))
+                rkey = task_key("runs", sorted(test.run_keys[c.label] for c in need_run),     # and what it judges
+                                sorted(test.metrics_keys[c.label] for c in streams if c in need_run))
                 feeds = {c.label: [(test.metrics_folders[c.label], test.metrics_keys[c.label])] for c in need_run}
                 self._feeds_of.update({test.run_keys[c.label]: feeds[c.label] for c in need_run})
+                judge: list = []
                 self.plan.tasks[rkey] = Task(rkey, RunSpec(
                     self.ctx, spec, w, h, protocol, need_run, {c.label: test.run_keys[c.label] for c in need_run},
-                    {c.label: test.run_folders[c.label] for c in need_run}, self.display_settings, feeds), rdeps)
+                    {c.label: test.run_folders[c.label] for c in need_run}, self.display_settings, feeds, judge), rdeps)
                 run_dep = (rkey,)
                 self._run_task_of.update({test.run_keys[c.label]: rkey for c in need_run})
+                self._judge_of.update({test.run_keys[c.label]: judge for c in need_run})
+            by_task: dict = {}
+            for c in streams:         # a group per test and run task: its items, their references
+                by_task.setdefault(self._run_task_of[test.run_keys[c.label]], []).append(c)
+            for rk, cs in by_task.items():
+                ts = sorted({t for c in cs for t in test.frame_times[c.label].values()})
+                self._judge_of[test.run_keys[cs[0].label]].append(
+                    {"items": [self._item(test, c, vlabels) for c in cs], "ref_settings": {t: at[t] for t in ts}})
+                task = self.plan.tasks[rk]
+                task.deps = tuple(dict.fromkeys(task.deps + tuple(
+                    self._reference(spec, scene, t, w, h, s) for t in ts for s in (at[t], self.display_settings))))
             # one metrics task judges the test's missing techniques together (study.engine.judge); a
             # metrics key another test's task already judges (a shared run's) is left to it
             mine = [c for c in missing if test.metrics_keys[c.label] not in self._metrics_task_of]
@@ -265,10 +283,7 @@ class Planner:
                 made_by = {shared.get(c.label) or (run_dep[0] if c in need_run else None) for c in mine} - {None}
                 deps = tuple(sorted(made_by)) + tuple(dict.fromkeys(
                     self._reference(spec, scene, t, w, h, s) for t in ts for s in (at[t], self.display_settings)))
-                items = [{"label": c.label, "run_folder": test.run_folders[c.label], "run_key": test.run_keys[c.label],
-                          "frame_times": test.frame_times[c.label], "maps_for": test.maps_for[c.label],
-                          "keep": test.keep[c.label] if self.prunes(test) else None, "hdr": test.protocol.hdr,
-                          "key": test.metrics_keys[c.label], "folder": test.metrics_folders[c.label]} for c in mine]
+                items = [self._item(test, c, vlabels) for c in mine]
                 gkey = task_key("metrics-of", sorted(it["key"] for it in items))
                 self.plan.tasks[gkey] = Task(gkey, MetricsSpec(
                     self.ctx, spec, w, h, items, {t: at[t] for t in ts}, self.display_settings), deps)
@@ -279,6 +294,13 @@ class Planner:
                             ref_keys, disp_keys)
         self.plan.tests.append(test)
         return test
+
+    def _item(self, test: Test, c, vlabels: set) -> dict:
+        """The metrics item of column `c` (study.engine.judge.metrics_task lists its fields)."""
+        return {"label": c.label, "run_folder": test.run_folders[c.label], "run_key": test.run_keys[c.label], "mark": self._mark,
+                "frame_times": test.frame_times[c.label], "maps_for": test.maps_for[c.label],
+                "keep": test.keep[c.label] if self.prunes(test) else None, "hdr": test.protocol.hdr,
+                "shown_8bit": c.label not in vlabels, "key": test.metrics_keys[c.label], "folder": test.metrics_folders[c.label]}
 
     def _add_video(self, spec, scene, test, configs, at, made, ref_keys, disp_keys) -> None:
         """The JOD of each column the video metric judges, once this round's runs are made (`at`:

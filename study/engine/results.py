@@ -82,6 +82,19 @@ class Artefacts:
         ch = self.store.read_image(folder, f"frame_{f:04d}.exr", rec)
         return np.stack([ch[c] for c in "RGB"], -1)
 
+    def frame_8bit(self, a: dict, f: int, disp) -> np.ndarray:
+        """Frame f of the run `a` as the 8-bit display image it was judged as under `disp` (a
+        display.DisplayTransform): the one its metrics task kept (a run pruned once judged keeps no
+        float frame: study.engine.judge), else its float frame through `disp`."""
+        folder, name = Path(a["metrics_folder"]), f"shown_{f:04d}.png"
+        rec = self.store.done(folder, a["metrics_key"])
+        if rec is None or name not in rec["files"]:
+            return disp.output(self.frame(a, f), a["output_space"])[2]
+        from PIL import Image
+        self.store.verify(folder / name, rec)
+        with Image.open(folder / name) as im:
+            return np.asarray(im.convert("RGB"))
+
     def maps(self, a: dict, f: int) -> dict:
         """The SSIM/FLIP maps of frame f of the metrics record of `a`."""
         folder = Path(a["metrics_folder"])

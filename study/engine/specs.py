@@ -47,10 +47,11 @@ class RunSpec:
     folders: dict                 # label -> run folder
     display_settings: dict        # the references display transforms come from
     feeds: dict                   # label -> [(metrics folder, key)] the run is judged into
+    judge: list | None = None     # the metrics items judged as the runs are made (run_task lists its fields)
 
     def __call__(self) -> dict:
         return RT.run_task(self.ctx, self.scene, self.width, self.height, self.protocol, self.configs,
-                           self.keys, self.folders, self.display_settings, self.feeds)
+                           self.keys, self.folders, self.display_settings, self.feeds, self.judge)
 
 
 @dataclass(frozen=True)

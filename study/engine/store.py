@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import io
 import json
 import os
 import socket
@@ -26,7 +27,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from provenance.files import _umask, sha256_file, write_text_atomic
+from provenance.files import _umask, sha256_file, write_bytes_atomic, write_text_atomic
 from references.exr import read_exr, write_exr
 
 
@@ -80,6 +81,14 @@ class FolderWriter:
     def add(self, name: str, data) -> None:
         write_exr(self.folder / name, data if isinstance(data, dict) else {"RGB": data},
                   compression=codec(name))
+        self.hashes[name] = sha256_file(self.folder / name)
+
+    def add_png(self, name: str, img8: np.ndarray) -> None:
+        """An (H, W, 3) uint8 image as PNG (lossless): a judged frame as the report shows it."""
+        from PIL import Image
+        buf = io.BytesIO()
+        Image.fromarray(np.ascontiguousarray(img8, np.uint8)).save(buf, format="PNG")
+        write_bytes_atomic(self.folder / name, buf.getvalue())
         self.hashes[name] = sha256_file(self.folder / name)
 
     def seal(self, key: str, meta: dict) -> dict:

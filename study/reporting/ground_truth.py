@@ -31,7 +31,6 @@ def _psnr(a8: np.ndarray, b8: np.ndarray) -> float:
 def figures(report, views: dict, references: dict, label: str | None) -> dict:
     if label is None:
         return {}
-    from study.reporting.encode import display_8bit
     todo = [(vl, r) for vl, rs in views.items() for r in rs if label in r.artefacts]
     inputs = {f"{r.scene}|{vl}": {l: [a["run_key"], a["frame"]] for l, a in r.artefacts.items()} for vl, r in todo}
 
@@ -40,9 +39,8 @@ def figures(report, views: dict, references: dict, label: str | None) -> dict:
         for vl, r in todo:
             disp = report.display(r.scene, 0, r.width, r.height, references[r.scene])
             a = r.artefacts[label]
-            gt8 = display_8bit(report.artefacts.frame(a, a["frame"]), a["output_space"], disp)
-            out[f"{r.scene}|{vl}"] = {l: _psnr(display_8bit(report.artefacts.frame(x, x["frame"]), x["output_space"],
-                                                            disp), gt8)
+            gt8 = report.artefacts.frame_8bit(a, a["frame"], disp)
+            out[f"{r.scene}|{vl}"] = {l: _psnr(report.artefacts.frame_8bit(x, x["frame"], disp), gt8)
                                       for l, x in r.artefacts.items() if l != label}
         return json.dumps(out, sort_keys=True)
     report._file("tables/ground_truth.json", compute, inputs)

@@ -15,7 +15,7 @@ from provenance.files import write_bytes_atomic, write_text_atomic
 from study.config.protocols import GHOSTING_FIGURES
 from study.engine.results import shown_frames
 from study.reporting import plots
-from study.reporting.encode import display_8bit, magma, png, slug, strict_json
+from study.reporting.encode import magma, png, slug, strict_json
 from study.reporting.findings_text import floor_note, precision_note
 from study.reporting.summaries import Summaries
 from study.reporting.sharpen_sweep import SharpenSweep
@@ -208,8 +208,7 @@ class Report(Summaries, Upscaling, SharpenSweep, Static):
                 rel = f"images/{stem}_{slug(label)}_{t:04d}.png"
 
                 def image(a=a, t=t):
-                    img = self.artefacts.frame(a, t)
-                    return png(display_8bit(img, a["output_space"], ref_of(t)[1]))
+                    return png(self.artefacts.frame_8bit(a, t, ref_of(t)[1]))
                 self._file(rel, image, {"run": a["run_key"], "frame": t, "reference": res.reference_keys.get(t)},
                            parallel=True)
                 imgs.append(rel)

@@ -8,7 +8,7 @@ import json
 import numpy as np
 
 from study.reporting import map_noise
-from study.reporting.encode import display_8bit, exr_bytes, magma, png, slug
+from study.reporting.encode import exr_bytes, magma, png, slug
 from study.reporting.findings_text import floor_note, precision_note
 from study.reporting.tables import thesis_layout
 
@@ -58,8 +58,7 @@ class Static:
             base = f"{stem}_{res.scene}_{slug(label)}"
 
             def image(a=a, f=f):
-                img = self.artefacts.frame(a, f)
-                return png(display_8bit(img, a["output_space"], disp()))
+                return png(self.artefacts.frame_8bit(a, f, disp()))
             self._file(f"images/{base}.png", image, key, parallel=True)
             if f not in a["maps_for"]:
                 continue
