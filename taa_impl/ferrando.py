@@ -121,19 +121,21 @@ def camera_motion(grid: K.Grid, depth, current, previous):
             and (current.width, current.height) == (previous.width, previous.height)):
         return dr.zeros(mi.Vector2f, grid.n)
     G, b, (ptx, pty) = _reprojection(current, previous)
-    b = [float(v) for v in b]       # Python floats: a NumPy scalar would turn the sum into NumPy
-    ptx, pty = float(ptx), float(pty)
+    # opaque: the cameras change every frame, and literals would compile a kernel per frame
+    f = K.opaque_float
+    b = [f(v) for v in b]
+    ptx, pty = K.opaque_rcp(ptx), K.opaque_rcp(pty)   # `* rcp` is what `/ literal` computed
     X = mi.Float(grid.x) + 0.5
     Y = mi.Float(grid.y) + 0.5
-    g = [[float(v) for v in row] for row in G]
+    g = [[f(v) for v in row] for row in G]
     qx = b[0] + depth * (g[0][0] * X + g[0][1] * Y + g[0][2])
     qy = b[1] + depth * (g[1][0] * X + g[1][1] * Y + g[1][2])
     zq = -(b[2] + depth * (g[2][0] * X + g[2][1] * Y + g[2][2]))
     ahead = zq > 0
     safe = dr.select(ahead, zq, 1.0)
-    px = (qx / safe / ptx + 1.0) * (0.5 * float(previous.width))
-    py = (1.0 - qy / safe / pty) * (0.5 * float(previous.height))
-    far_off = 4.0 * float(max(grid.w, grid.h)) + 4.0
+    px = (qx / safe * ptx + 1.0) * f(0.5 * float(previous.width))
+    py = (1.0 - qy / safe * pty) * f(0.5 * float(previous.height))
+    far_off = f(4.0 * float(max(grid.w, grid.h)) + 4.0)
     return mi.Vector2f(dr.select(ahead, X - px, far_off), dr.select(ahead, Y - py, far_off))
 
 

@@ -130,7 +130,7 @@ class FSR2(Upscaler):
             clip_r = dr.zeros(mi.Float, fr.render.n)
         near = fr.nearest()
         vr = dr.gather(mi.Vector2f, dil_motion, near)
-        velocity = mi.Vector2f(vr.x / fr.sx, vr.y / fr.sy)
+        velocity = mi.Vector2f(vr.x * fr.rx, vr.y * fr.ry)
         hr_vel = dr.norm(velocity)
         clip = dr.gather(mi.Float, clip_r, near)
         # 5. reproject the history
@@ -142,7 +142,9 @@ class FSR2(Upscaler):
         ratio = 1.0 / fr.sx
         bias_max = min(1.99, ratio)
         bias_min = max(1.0, (1.0 + bias_max) * 0.3)
-        bias = bias_max + (bias_min - bias_max) * dr.maximum(0.25 * clip, dr.select(new_sample, 1.0, 0.0))
+        # per-size constants as opaque kernel parameters (a literal would compile per size)
+        bias = K.opaque_float(bias_max) + K.opaque_float(bias_min - bias_max) * dr.maximum(
+            0.25 * clip, dr.select(new_sample, 1.0, 0.0))
         curve = -2.0 - K.clamp01(hr_vel / 50.0)
         cur = K.rgb_to_ycocg(c * exposure)
         up, w_up, centre, vec, amin, amax = P.upsample(fr, cur, jitter, bias, curve)
@@ -184,7 +186,8 @@ class FSR2(Upscaler):
             weight = dr.minimum(weight, p.max_accumulation * (1.0 + lock_c))
         # rectify the history
         influence = min(20.0, (1.0 / (fr.sx * fr.sy)) ** 3)
-        box_scale = influence + (1.0 - influence) * dr.maximum(clip, K.clamp01(hr_vel / 20.0))
+        box_scale = K.opaque_float(influence) + K.opaque_float(1.0 - influence) * dr.maximum(
+            clip, K.clamp01(hr_vel / 20.0))
         bmin = dr.maximum(amin, centre - vec * box_scale)
         bmax = dr.minimum(amax, centre + vec * box_scale)
         h = K.rgb_to_ycocg(h_rgb)

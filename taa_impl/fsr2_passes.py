@@ -28,7 +28,9 @@ def auto_exposure(color):
     Lmax = 78 / (q S) 2^EV100 = 9.6 Lavg; exposure = 1 / Lmax. A one-entry array (kept on the
     device: as a literal it would make every frame's kernels new)."""
     luma = dr.maximum(K.luminance(color, LUMA), 1e-8)
-    lavg = dr.exp(dr.mean(dr.log(luma)))
+    log_luma = dr.log(luma)
+    # the mean as dr.mean computes it, with 1 / n opaque (a literal 1 / n is a kernel per size)
+    lavg = dr.exp(dr.sum(log_luma) * K.opaque_rcp(dr.width(log_luma)))
     s, k, q = 100.0, 12.5, 0.65
     return 1.0 / (78.0 / (q * s) * (lavg * s / k))
 
@@ -57,12 +59,12 @@ def reconstruct_and_dilate(fr, depth, motion, far: float):
     px = mi.Float(g.x) + 0.5 - dil_motion.x
     py = mi.Float(g.y) + 0.5 - dil_motion.y
     x0, y0 = mi.Int32(dr.floor(px - 0.5)), mi.Int32(dr.floor(py - 0.5))
-    prev = dr.full(mi.Float, far, g.n)
+    prev = dr.zeros(mi.Float, g.n) + K.opaque_float(far)    # opaque: `far` changes between calls
     for dx in (0, 1):
         for dy in (0, 1):
             xi, yi = x0 + dx, y0 + dy
-            on = (xi >= 0) & (xi < g.w) & (yi >= 0) & (yi < g.h)
-            dr.scatter_reduce(dr.ReduceOp.Min, prev, depth, yi * g.w + xi, on)
+            on = (xi >= 0) & (xi < g.W) & (yi >= 0) & (yi < g.H)
+            dr.scatter_reduce(dr.ReduceOp.Min, prev, depth, yi * g.W + xi, on)
     dr.eval(prev)
     return dil_depth, dil_motion, prev
 
@@ -86,15 +88,20 @@ def depth_clip(fr, dil_depth, dil_motion, prev_depth, tan_half: tuple[float, flo
     kfov = math.sqrt(tan_half[0] ** 2 + tan_half[1] ** 2 + 1.0)   # |corner| / |centre| at one depth
     size = math.hypot(g.w, g.h)
     power = 1.0 + 2.0 * min(1.0, size / math.hypot(1920, 1080))
+    # per-size and per-camera constants as kernel parameters; an integer power stays a literal
+    # (Dr.Jit expands it into products, which an opaque exponent would not give)
+    sep_scale = K.opaque_float(KSEP * kfov * size)
+    if power != int(power):
+        power = K.opaque_float(power)
     acc = dr.zeros(mi.Float, g.n)
     wsum = dr.zeros(mi.Float, g.n)
     for dx, dy, w in ((0, 0, (1 - tx) * (1 - ty)), (1, 0, tx * (1 - ty)), (0, 1, (1 - tx) * ty), (1, 1, tx * ty)):
         xi, yi = x0 + dx, y0 + dy
-        on = (xi >= 0) & (xi < g.w) & (yi >= 0) & (yi < g.h) & (w > RECONSTRUCTED_DEPTH_WEIGHT_MIN)
-        prev = dr.gather(mi.Float, prev_depth, dr.clip(yi, 0, g.h - 1) * g.w + dr.clip(xi, 0, g.w - 1))
+        on = (xi >= 0) & (xi < g.W) & (yi >= 0) & (yi < g.H) & (w > RECONSTRUCTED_DEPTH_WEIGHT_MIN)
+        prev = dr.gather(mi.Float, prev_depth, dr.clip(yi, 0, g.H - 1) * g.W + dr.clip(xi, 0, g.W - 1))
         diff = dil_depth - prev
         use = on & (diff > 0)
-        sep = KSEP * kfov * size * dr.maximum(dil_depth, prev)
+        sep = sep_scale * dr.maximum(dil_depth, prev)
         acc += dr.select(use, dr.power(K.clamp01(sep / dr.maximum(diff, 1e-30)), power) * w, 0.0)
         wsum += dr.select(use, w, 0.0)
     return dr.select(wsum > 0, K.clamp01(1.0 - acc / dr.maximum(wsum, 1e-30)), 0.0)
@@ -132,8 +139,8 @@ def create_locks(fr, thin, jitter):
     """New locks at output resolution: each thin render pixel locks the output pixel its jittered
     sample lies in (FSR 2 writes the lock where the sample lands)."""
     g, o = fr.render, fr.output
-    sx = (mi.Float(g.x) + 0.5 + jitter[0]) / fr.sx
-    sy = (mi.Float(g.y) + 0.5 + jitter[1]) / fr.sy
+    sx = (mi.Float(g.x) + 0.5 + jitter[0]) * fr.rx
+    sy = (mi.Float(g.y) + 0.5 + jitter[1]) * fr.ry
     idx = K.nearest_index(o, sx, sy)
     new = dr.zeros(mi.Float, o.n)
     dr.scatter(new, 1.0, idx, thin)
@@ -164,8 +171,8 @@ def upsample(fr, color_ycocg, jitter, kernel_bias, curve_bias):
     for dy in (-1, 0, 1):
         for dx in (-1, 0, 1):
             xi, yi = ix + dx, iy + dy
-            on = (xi >= 0) & (xi < g.w) & (yi >= 0) & (yi < g.h)
-            c = dr.gather(mi.Color3f, color_ycocg, dr.clip(yi, 0, g.h - 1) * g.w + dr.clip(xi, 0, g.w - 1))
+            on = (xi >= 0) & (xi < g.W) & (yi >= 0) & (yi < g.H)
+            c = dr.gather(mi.Color3f, color_ycocg, dr.clip(yi, 0, g.H - 1) * g.W + dr.clip(xi, 0, g.W - 1))
             ox = mi.Float(xi) + 0.5 + jitter[0] - fr.ux
             oy = mi.Float(yi) + 0.5 + jitter[1] - fr.uy
             d2 = ox * ox + oy * oy

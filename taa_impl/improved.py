@@ -77,10 +77,10 @@ class ImprovedTAA(TAATechnique):
     def _step(self, b: dict, frame: Frame):
         p = self.params
         grid = self._grid_for(*frame.size)
-        far = frame.far
+        inv_far = K.opaque_rcp(frame.far)   # opaque: `far` changes between calls (same as / far)
         c = b["color"]
-        zn = b["depth"] / far            # normalised linear depth
-        zp = b["prev_depth"] / far
+        zn = b["depth"] * inv_far        # normalised linear depth
+        zp = b["prev_depth"] * inv_far
         best_i = K.closest_index(grid, b["depth"])
         velocity = dr.gather(mi.Vector2f, b["motion"], best_i)
         reject = self._rejection(grid, b, best_i, velocity)

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 import backend  # noqa: F401
 from backend import dr, mi
 
@@ -19,22 +21,30 @@ REC709 = (0.2126, 0.7152, 0.0722)
 
 
 class Grid:
-    """Pixel coordinates and clamped neighbour indices for one resolution."""
+    """Pixel coordinates and clamped neighbour indices for one resolution.
+
+    `w`, `h`, `n` are Python ints (shapes, comparisons); kernels use the opaque copies `W`, `H`
+    (Int32) and `Wf`, `Hf` (Float), so the size is a kernel parameter, not a literal baked into
+    the code, and a second resolution reuses the compiled kernels. `x`, `y` are evaluated once per
+    resolution: an integer division by an opaque width would be a scalar loop in every kernel."""
 
     def __init__(self, width: int, height: int):
         self.w, self.h, self.n = int(width), int(height), int(width) * int(height)
+        self.W, self.H = opaque_int(self.w), opaque_int(self.h)
+        self.Wf, self.Hf = opaque_float(self.w), opaque_float(self.h)
         i = dr.arange(mi.Int32, self.n)
-        self.x = i % self.w
-        self.y = i // self.w
+        self.x = i % self.W
+        self.y = i // self.W
+        dr.eval(self.x, self.y)
         self._index: dict[tuple[int, int], object] = {}
 
     def index(self, dx: int, dy: int):
         """Flat index of pixel (x+dx, y+dy), clamped to the image (clamp-to-edge)."""
         key = (dx, dy)
         if key not in self._index:
-            xx = dr.clip(self.x + dx, 0, self.w - 1)
-            yy = dr.clip(self.y + dy, 0, self.h - 1)
-            self._index[key] = yy * self.w + xx
+            xx = dr.clip(self.x + dx, 0, self.W - 1)
+            yy = dr.clip(self.y + dy, 0, self.H - 1)
+            self._index[key] = yy * self.W + xx
         return self._index[key]
 
     def tap(self, img, dx: int, dy: int):
@@ -62,6 +72,23 @@ class Neighbourhood:
         """Thesis eq. 4.11: mix(cross value, 3x3 value, t)."""
         return (lerp(self.minx, self.min3, t), lerp(self.maxx, self.max3, t),
                 lerp(self.avgx, self.avg3, t))
+
+
+def opaque_float(v):
+    """`v` as an opaque mi.Float: a per-call constant (a size, a jitter, a camera term) passed to
+    the kernel as a parameter, so a new value reuses the compiled kernel (a literal would not)."""
+    return dr.opaque(mi.Float, float(v))
+
+
+def opaque_rcp(v):
+    """1 / `v` as an opaque mi.Float: Dr.Jit computes `x / literal` as x times the literal's
+    reciprocal, so `x * opaque_rcp(c)` is bit for bit what `x / c` gave with c a literal."""
+    return dr.opaque(mi.Float, float(np.float32(1.0) / np.float32(v)))   # in float32, as Dr.Jit
+
+
+def opaque_int(v):
+    """`v` as an opaque mi.Int32 (see opaque_float)."""
+    return dr.opaque(mi.Int32, int(v))
 
 
 def lerp(a, b, t):
@@ -135,7 +162,7 @@ def previous_position(grid: Grid, velocity):
     whether that lies inside [0, W] x [0, H]."""
     px = mi.Float(grid.x) + 0.5 - velocity.x
     py = mi.Float(grid.y) + 0.5 - velocity.y
-    valid = (px >= 0) & (px <= grid.w) & (py >= 0) & (py <= grid.h)
+    valid = (px >= 0) & (px <= grid.Wf) & (py >= 0) & (py <= grid.Hf)
     return px, py, valid
 
 
@@ -144,16 +171,16 @@ def _texel_coords(grid: Grid, px, py):
 
     Clamped before the int conversion: huge positions must not overflow Int32 (clamp-to-edge reads
     the same texels for any position beyond one texel outside the image)."""
-    u = dr.clip(px - 0.5, -1.0, float(grid.w))
-    v = dr.clip(py - 0.5, -1.0, float(grid.h))
+    u = dr.clip(px - 0.5, -1.0, grid.Wf)
+    v = dr.clip(py - 0.5, -1.0, grid.Hf)
     fu, fv = dr.floor(u), dr.floor(v)
     return mi.Int32(fu), mi.Int32(fv), u - fu, v - fv
 
 
 def texel(grid: Grid, img, xi, yi):
     """img at integer texel (xi, yi), clamp-to-edge."""
-    xc, yc = dr.clip(xi, 0, grid.w - 1), dr.clip(yi, 0, grid.h - 1)
-    return dr.gather(type(img), img, yc * grid.w + xc)
+    xc, yc = dr.clip(xi, 0, grid.W - 1), dr.clip(yi, 0, grid.H - 1)
+    return dr.gather(type(img), img, yc * grid.W + xc)
 
 
 def bilinear(grid: Grid, img, px, py):
@@ -164,7 +191,7 @@ def bilinear(grid: Grid, img, px, py):
 
 
 def _bilinear_at(grid: Grid, img, x0, tx, y0, ty):
-    w, h = grid.w, grid.h
+    w, h = grid.W, grid.H
     x0c, x1c = dr.clip(x0, 0, w - 1), dr.clip(x0 + 1, 0, w - 1)
     y0c, y1c = dr.clip(y0, 0, h - 1), dr.clip(y0 + 1, 0, h - 1)
     T = type(img)
@@ -177,9 +204,9 @@ def _bilinear_at(grid: Grid, img, x0, tx, y0, ty):
 
 def nearest_index(grid: Grid, px, py):
     """Flat index of the texel containing (px, py), clamped to the image."""
-    xi = mi.Int32(dr.floor(dr.clip(px, 0.0, float(grid.w))))
-    yi = mi.Int32(dr.floor(dr.clip(py, 0.0, float(grid.h))))
-    return dr.clip(yi, 0, grid.h - 1) * grid.w + dr.clip(xi, 0, grid.w - 1)
+    xi = mi.Int32(dr.floor(dr.clip(px, 0.0, grid.Wf)))
+    yi = mi.Int32(dr.floor(dr.clip(py, 0.0, grid.Hf)))
+    return dr.clip(yi, 0, grid.H - 1) * grid.W + dr.clip(xi, 0, grid.W - 1)
 
 
 def catmull_rom_weights(t):

@@ -336,8 +336,7 @@ def blending_weights(grid: K.Grid, E, p: SMAAParams):
     idx = dr.compress((E.x > 0.0) | (E.y > 0.0))
     if dr.width(idx) == 0:
         return tuple(out[:4]), out[4]
-    ii = mi.Int32(idx)
-    xi, yi = ii % grid.w, ii // grid.w
+    xi, yi = dr.gather(mi.Int32, grid.x, idx), dr.gather(mi.Int32, grid.y, idx)   # = ii % w, ii // w
     e = dr.gather(mi.Vector2f, E, idx)
     has_left, has_top = e.x > 0.0, e.y > 0.0
     if p.max_search_steps_diag > 0:

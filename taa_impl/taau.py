@@ -67,16 +67,16 @@ class TAAU(Upscaler):
         near = fr.nearest()
         bmin, bmax, _ = K.neighbourhood(fr.render, c).averaged()
         bmin, bmax = dr.gather(mi.Color3f, bmin, near), dr.gather(mi.Color3f, bmax, near)
-        nx, ny = near % fr.render.w, near // fr.render.w
+        nx, ny = fr.nx, fr.ny
         inv2s2 = 1.0 / (2.0 * float(p.sigma) ** 2)
         acc = wsum = wmax = None
         for dx, dy in K.OFFSETS_3X3:
-            xi = dr.clip(nx + dx, 0, fr.render.w - 1)
-            yi = dr.clip(ny + dy, 0, fr.render.h - 1)
-            col = dr.gather(mi.Color3f, c, yi * fr.render.w + xi)
+            xi = dr.clip(nx + dx, 0, fr.render.W - 1)
+            yi = dr.clip(ny + dy, 0, fr.render.H - 1)
+            col = dr.gather(mi.Color3f, c, yi * fr.render.W + xi)
             # the sample's offset from the output pixel centre, in output pixels
-            ox = (mi.Float(xi) + 0.5 + jitter[0] - fr.ux) / fr.sx
-            oy = (mi.Float(yi) + 0.5 + jitter[1] - fr.uy) / fr.sy
+            ox = (mi.Float(xi) + 0.5 + jitter[0] - fr.ux) * fr.rx
+            oy = (mi.Float(yi) + 0.5 + jitter[1] - fr.uy) * fr.ry
             if p.filter == "box":
                 w = dr.select((dr.abs(ox) <= 0.5) & (dr.abs(oy) <= 0.5), 1.0, 0.0)
             else:
@@ -95,7 +95,7 @@ class TAAU(Upscaler):
         best = K.closest_index(fr.render, b["depth"])
         vel_r = dr.gather(mi.Vector2f, b["motion"], best)
         vel_r = dr.gather(mi.Vector2f, vel_r, fr.nearest())
-        velocity = mi.Vector2f(vel_r.x / fr.sx, vel_r.y / fr.sy)
+        velocity = mi.Vector2f(vel_r.x * fr.rx, vel_r.y * fr.ry)
         cur, bmin, bmax, wmax = self.reconstruct(fr, b["color"], jitter)
         if self._history is None:
             blend, valid = cur, None

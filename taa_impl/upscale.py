@@ -79,16 +79,30 @@ class Frames:
     uy: object
     sx: float         # render / output pixels, per axis
     sy: float
+    rx: object        # opaque mi.Float 1 / sx, 1 / sy: `v * rx` is `v / sx` (K.opaque_rcp)
+    ry: object
+    near: object      # mi.Int32: the render pixel each output pixel's centre lies in (flat index)
+    nx: object        # ... and its (x, y)
+    ny: object
 
     @classmethod
     def of(cls, rw: int, rh: int, w: int, h: int) -> "Frames":
+        """The grids and positions for render size rw x rh and output size w x h, evaluated once
+        (the scale factors are opaque: a new size compiles no new kernel)."""
         r, o = K.Grid(rw, rh), K.Grid(w, h)
         sx, sy = rw / w, rh / h
-        return cls(r, o, (mi.Float(o.x) + 0.5) * sx, (mi.Float(o.y) + 0.5) * sy, sx, sy)
+        ux = (mi.Float(o.x) + 0.5) * K.opaque_float(sx)
+        uy = (mi.Float(o.y) + 0.5) * K.opaque_float(sy)
+        xi = mi.Int32(dr.floor(dr.clip(ux, 0.0, r.Wf)))
+        yi = mi.Int32(dr.floor(dr.clip(uy, 0.0, r.Hf)))
+        nx, ny = dr.clip(xi, 0, r.W - 1), dr.clip(yi, 0, r.H - 1)
+        near = ny * r.W + nx                # = K.nearest_index(r, ux, uy)
+        dr.eval(ux, uy, nx, ny, near)
+        return cls(r, o, ux, uy, sx, sy, K.opaque_rcp(sx), K.opaque_rcp(sy), near, nx, ny)
 
     def nearest(self):
         """Flat index of the render pixel each output pixel's centre lies in."""
-        return K.nearest_index(self.render, self.ux, self.uy)
+        return self.near
 
 
 class Upscaler(Technique):
