@@ -70,14 +70,19 @@ class Accumulation(Technique):
         self._sum = c if self._sum is None else self._sum + c
         dr.eval(self._sum)
         self.count += 1
-        return mi.Color3f(self._sum / float(self.count))
+        return mi.Color3f(self._sum * self._inv_count())
+
+    def _inv_count(self):
+        """1 / count, opaque: Dr.Jit computes `x / literal n` as x times 1/n (double here), so this
+        is the same mean, with one kernel for every count instead of one per count."""
+        return dr.opaque(mi.Float64, 1.0 / self.count)
 
     @property
     def mean(self) -> np.ndarray | None:
         """The current running mean as NumPy, or None after a reset."""
         if self._sum is None:
             return None
-        return from_drjit_color(mi.Color3f(self._sum / float(self.count)), *self._shape)
+        return from_drjit_color(mi.Color3f(self._sum * self._inv_count()), *self._shape)
 
 
 __all__ = ["NoAA", "NoAAParams", "Accumulation", "AccumulationParams"]

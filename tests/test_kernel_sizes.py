@@ -69,3 +69,15 @@ def test_a_second_size_compiles_no_new_kernel(name):
     new = second - first
     assert len(new) <= ALLOWED_NEW.get(name, 0), \
         f"{name}: {len(new)} of {len(second)} kernels at 52x31 are new (a size or frame constant as a literal)"
+
+
+def test_accumulation_compiles_one_mean_for_every_count():
+    """The running mean divides by the frame count: as a literal, every count was a new kernel
+    (a 128-sample reference compiled 128)."""
+    tech = taa_impl.make("accumulation", samples=6)
+    frames = [synthetic_frame(20, 12, seed=k) for k in range(6)]
+    first = _kernels(lambda: [tech.process(f, far=50.0) for f in frames[:2]])
+    later = _kernels(lambda: [tech.process(f, far=50.0) for f in frames[2:]])
+    assert first and not (later - first), f"{len(later - first)} new kernels for counts 3-6"
+    want = np.mean(np.stack([f["color"].astype(np.float64) for f in frames]), 0).astype(np.float32)
+    np.testing.assert_array_equal(tech.mean, want)
