@@ -43,8 +43,7 @@ def test_a_pruned_run_keeps_no_float_frame_and_the_report_reads_its_shown_frames
     monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))
     scene = tmp_path / "long.toml"
     scene.write_text(moving_scene(frames=28, size=(24, 16)))
-    text = STUDY.format(scenes=json.dumps([str(scene)])).replace("frames = 4", "frames = 28") \
-        + '\n[video]\nmetric = "none"\n'
+    text = STUDY.format(scenes=json.dumps([str(scene)])).replace("frames = 4", "frames = 28")
     configs = [TechniqueConfig.parse(s) for s in ("taa_baseline", "noaa")]
 
     def run(keep_all: bool):
@@ -95,7 +94,7 @@ def test_a_run_pruned_once_judged_is_judged_as_it_is_made_and_never_writes_a_flo
 
     def run(cache: str, keep_all: bool = False):
         monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / cache))
-        text = STUDY.format(scenes=json.dumps([str(scene)])) + '\n[video]\nmetric = "none"\n'
+        text = STUDY.format(scenes=json.dumps([str(scene)]))
         path = tmp_path / "s.toml"
         path.write_text(text.replace("sweep = false\n", 'sweep = false\nkeep_frames = "all"\n') if keep_all else text)
         return Study(get_profile(str(path)), cache_root=tmp_path / cache, progress=False).run(
