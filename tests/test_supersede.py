@@ -107,8 +107,8 @@ def test_a_study_killed_after_a_removal_resumes_at_its_finer_bounds(studies, tmp
     removed_then = set(_refs(tmp_path))
     s, configs, logs = _study(tmp_path, keep=False)
     res = s.run(scenes, configs, agreement=False)
-    assert any(m.startswith("precision: resuming") for m in logs), logs
     assert res.stats["references_rendered"] == 0, res.stats
+    assert any(m.startswith("precision: resuming") for m in logs), logs
     assert _figures(res) == _figures(out["kept"][0]) and res.precision == out["kept"][0].precision
     # no removed reference was rendered again: the resumed study's are the uninterrupted one's
     assert set(_refs(tmp_path)) == set(_refs(root / "removed")) and removed_then <= set(_refs(tmp_path))

@@ -230,7 +230,9 @@ class Study:
         figures = self.precision.rule == "figures"
         whole = figures and self.profile.runs_while_refining == "whole"    # else every test's runs are pruned once judged
         free = D.free_bytes(self.cache.root) + S.freeable(self, getattr(self, "_last", None), rnd)   # superseded
-        pruned = D.fit(D.needs(rnd.plan), free, whole, self.cache.root, state.pruned, self.log)
+        need = D.needs(rnd.plan)      # the first round of a study that removes what it supersedes: one refinement kept free
+        reserve = D.refining(need) if S.removing(self) and not state.rounds and not state.final else 0
+        pruned = D.fit(need, free, whole, self.cache.root, state.pruned, self.log, reserve)
         if figures and pruned != state.pruned:
             return replace(state, pruned=pruned), True          # their metrics prune their runs
         if not figures or state.memo is not None:
