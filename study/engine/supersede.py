@@ -39,7 +39,12 @@ def reference_paths(cache, scene, t: int, w: int, h: int, settings: dict, memo: 
     reuse, since, code = s.get("reuse", False), s.get("reuse_since", 0), code_version()
     first = t
     while reuses(scene, first, w, h, reuse, since):
+        m = ("first", scene.content_hash, first - 1, w, h, reuse, since)
+        if m in memo:                 # where an earlier instant's chain starts
+            first = memo[m]
+            break
         first -= 1
+    memo[("first", scene.content_hash, t, w, h, reuse, since)] = first
     out, key = [], None
     for u in range(first, t + 1):     # as ReferenceCache.key, each key once
         m = (scene.content_hash, u, w, h, repr(sorted(kw.items())), key)
@@ -101,7 +106,7 @@ def removing(study) -> bool:
 
 
 def superseded(study, before, now) -> set[Path]:
-    """What the previous round's plan `before` read and the round `now` does not (Rounds): None
+    """What the previous round's plan `before` read and the round `now` does not (Rounds): empty
     where nothing is removed. Remembered for `now` (fit prices the disk with it, then it is removed)."""
     if not removing(study) or before is None:
         return set()
