@@ -86,16 +86,21 @@ def test_a_reference_still_read_elsewhere_stays(studies):
     assert out["removed"][0].stats["references_rendered"] == 0     # each read where it was seeded
 
 
-@pytest.mark.long(seconds=12)
-def test_a_study_killed_after_a_removal_resumes_at_its_finer_bounds(studies, tmp_path, monkeypatch):
+@pytest.mark.long(seconds=6)
+@pytest.mark.parametrize("removed_first", [True, False], ids=["after-the-removal", "before-it"])
+def test_a_killed_study_resumes_at_its_finer_bounds(studies, tmp_path, monkeypatch, removed_first):
+    """Killed as its third round starts, after removing what the second read (or before): the same
+    command resumes at the third round's bounds, renders nothing removed, removes what is left."""
     from study.engine import supersede as S
     root, scenes, out = studies
     real, calls = S.before_round, []
 
     def killed(study, before, now):
-        got = real(study, before, now)
         calls.append(1)
-        if len(calls) == 3:          # the third round: the second round's intermediate references removed
+        if len(calls) == 3 and not removed_first:
+            raise KeyboardInterrupt
+        got = real(study, before, now)
+        if len(calls) == 3:
             raise KeyboardInterrupt
         return got
     monkeypatch.setattr(S, "before_round", killed)
@@ -111,5 +116,7 @@ def test_a_study_killed_after_a_removal_resumes_at_its_finer_bounds(studies, tmp
     assert any(m.startswith("precision: resuming") for m in logs), logs
     assert _figures(res) == _figures(out["kept"][0]) and res.precision == out["kept"][0].precision
     # no removed reference was rendered again: the resumed study's are the uninterrupted one's
-    assert set(_refs(tmp_path)) == set(_refs(root / "removed")) and removed_then <= set(_refs(tmp_path))
+    # and what the killed round had not removed yet is removed on resuming
+    assert set(_refs(tmp_path)) == set(_refs(root / "removed"))
+    assert (removed_then <= set(_refs(tmp_path))) == removed_first
     assert not list((tmp_path / "precision" / "progress").rglob("*.json"))      # finished: nothing to resume

@@ -169,7 +169,8 @@ class Study:
         probe (an A/B comparison: its new column is judged there, and refined only if over)."""
         ask = Request(specs, configs, agreement, sweep, ghosting, sharpen, seeded)
         state = self.recall_decisions(ask)
-        self._last = None         # the round before: what it read that a finer one replaced is removed
+        # the round before (or what a killed study's last round read): what a finer one replaced is removed
+        self._last = getattr(self, "_resumed", None)
         with Session(self.executor, self.log, self.deadline) as session:     # one cluster for every round
             while not state.finished:
                 state, rnd = self.plan_round(ask, state)
@@ -177,7 +178,7 @@ class Study:
                 state = self.execute_round(session, rnd, state)
                 if not state.finished:
                     state = self.decide_next(ask, rnd, state, self.judge_round(rnd, state))
-                    S.file_progress(self, state)
+                    S.file_progress(self, state, rnd)
         self.file_decisions(state)
         return self.gather(rnd, state, session)
 
@@ -201,7 +202,7 @@ class Study:
                 levels, tried, over, drifts = P.from_record(memo["replayed"])
                 self.log("precision: every test's bound as decided by an earlier study of the same inputs")
                 state = replace(state, levels=levels, tried=tried, over=over, drifts=drifts, memo=memo, final=True)
-            elif not self.profile.keep_superseded and (got := S.resume(Store(self.cache.root), inputs, self.log)):
+            elif not self.profile.keep_superseded and (got := S.resume(self, inputs)):
                 state = replace(state, **got)      # a killed study's coarser references are gone
         return self._adopt(state)
 

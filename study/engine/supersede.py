@@ -78,6 +78,19 @@ def held(study, rnd) -> set[Path]:
     return out
 
 
+def _held(study, rnd) -> set[Path]:
+    """`held` of a Round, or a set of paths as filed (what a killed study's last round read);
+    remembered per Round (each is asked twice: as `now`, then as the next round's `before`)."""
+    if isinstance(rnd, set):
+        return rnd
+    memo = study.__dict__.setdefault("_held_of", {})
+    if id(rnd) not in memo or memo[id(rnd)][0] is not rnd:
+        memo[id(rnd)] = (rnd, held(study, rnd))
+        while len(memo) > 2:          # this round's and the one before
+            memo.pop(next(iter(memo)))
+    return memo[id(rnd)][1]
+
+
 def remove(paths, root: Path) -> tuple[int, int]:
     """Delete each file or folder of `paths` that exists, renamed first to a trash name under
     `root` (atomic: no reader sees it half deleted). Returns (how many, bytes freed)."""
@@ -112,7 +125,7 @@ def superseded(study, before, now) -> set[Path]:
         return set()
     memo = getattr(study, "_superseded", None)
     if memo is None or memo[0] is not now:
-        study._superseded = memo = (now, held(study, before) - held(study, now))
+        study._superseded = memo = (now, _held(study, before) - _held(study, now))
     return memo[1]
 
 
@@ -145,9 +158,10 @@ def _path(store, inputs: str) -> Path:
     return store.record_path("precision", "progress", inputs)
 
 
-def save_progress(store, inputs: str, state) -> None:
+def save_progress(store, inputs: str, state, paths=()) -> None:
     """File the state the next round starts from (levels, bounds tried, figures over tolerance,
-    drifts, the figures judged last, the tests settled early, the probes' and decisions' keys)."""
+    drifts, the figures judged last, the tests settled early, the probes' and decisions' keys) and
+    `paths`, what the last round read (under the store's root)."""
     def tk(k):
         return [*k] if isinstance(k, InstantKey) else [*k, None]
     memo = state.memo or {}
@@ -159,7 +173,8 @@ def save_progress(store, inputs: str, state) -> None:
                       for k, (bounds, figs) in state.before.items()],
            "early": sorted([*k] for k in state.early),
            "probes": [[*k, list(v)] for k, v in (state.probes or {}).items()],
-           "decisions": memo.get("key"), "final": bool(state.final)}
+           "decisions": memo.get("key"), "final": bool(state.final),
+           "held": sorted(os.path.relpath(p, store.root) for p in paths)}
     store.save_record(_path(store, inputs), inputs, rec)
 
 
@@ -178,27 +193,32 @@ def load_progress(store, inputs: str) -> dict | None:
                        for s, p, bounds, figs in rec["before"]},
             "early": frozenset(TestKey(*k) for k in rec["early"]),
             "probes": {TestKey(s, p): list(v) for s, p, v in rec["probes"]},
-            "decisions": rec.get("decisions"), "final": bool(rec.get("final"))}
+            "decisions": rec.get("decisions"), "final": bool(rec.get("final")), "held": rec.get("held", [])}
 
 
-def resume(store, inputs: str, log=print) -> dict | None:
+def resume(study, inputs: str) -> dict | None:
     """Progress's fields to start a killed study of these inputs from (`load_progress`, its
-    decisions record's place as precision.decisions gives it), or None."""
+    decisions record's place as precision.decisions gives it), or None. What its last round read
+    is set on the study (`_resumed`): what the resumed round no longer reads is removed then."""
+    from study.engine.store import Store
+    store = Store(study.cache.root)
     got = load_progress(store, inputs)
     if got is None:
         return None
-    key = got.pop("decisions")
-    log("precision: resuming at the bounds a killed study of the same inputs had reached (its coarser "
-        "references removed: keep_superseded = false)")
+    key, paths = got.pop("decisions"), got.pop("held")
+    study._resumed = {store.root / p for p in paths}
+    study.log("precision: resuming at the bounds a killed study of the same inputs had reached (its coarser "
+              "references removed: keep_superseded = false)")
     return {**got, "memo": None if key is None else {
         "store": store, "path": store.record_path("precision", "decisions", key), "key": key, "replayed": None}}
 
 
-def file_progress(study, state) -> None:
-    """File the state the next round starts from, where superseded artefacts are removed."""
+def file_progress(study, state, rnd) -> None:
+    """File the state the next round starts from and what the round `rnd` read, where superseded
+    artefacts are removed."""
     from study.engine.store import Store
     if removing(study) and state.inputs and not state.finished:
-        save_progress(Store(study.cache.root), state.inputs, state)
+        save_progress(Store(study.cache.root), state.inputs, state, _held(study, rnd))
 
 
 def forget_progress(store, inputs: str | None) -> None:
