@@ -120,3 +120,24 @@ def test_a_killed_study_resumes_at_its_finer_bounds(studies, tmp_path, monkeypat
     assert set(_refs(tmp_path)) == set(_refs(root / "removed"))
     assert (removed_then <= set(_refs(tmp_path))) == removed_first
     assert not list((tmp_path / "precision" / "progress").rglob("*.json"))      # finished: nothing to resume
+
+
+def test_the_disk_plan_prices_one_refinement_in_flight_where_superseded_artefacts_are_removed(tmp_path):
+    """study.engine.disk: removing what a finer bound supersedes, the peak is the first round's
+    files and one refinement of every test's references beside the probe's; the first round's
+    check keeps that free (a disk that holds the first round alone is refused), and `estimate`
+    says what it assumes."""
+    from study.engine import disk as D
+    mb = 2 ** 20
+    need = {"references": 40 * mb, "maps": 10 * mb, "tests": {("s", "ghosting"): (300 * mb, 5 * mb)}, "run": 0}
+    first = 40 * mb + 10 * mb + 5 * mb + D.margin(need)          # references, maps, shown frames, margin
+    assert D.refining(need) == 40 * mb
+    kept, removed = D.summary(need, 10 ** 12, True, False), D.summary(need, 10 ** 12, True, True)
+    assert kept["planned_gb"] * 2 ** 30 == pytest.approx(first)
+    assert removed["planned_gb"] * 2 ** 30 == pytest.approx(first + 40 * mb)
+    assert "one refinement of every test's references in flight" in D.describe(removed)[-1]
+    assert "the first round only" in D.describe(kept)[-1]
+    D.fit(need, first, False, tmp_path)                            # the first round alone fits
+    with pytest.raises(D.DiskError, match=r"one refinement's references 40.0 MB"):
+        D.fit(need, first, False, tmp_path, reserve=D.refining(need))
+    D.fit(need, first + 40 * mb, False, tmp_path, reserve=D.refining(need))
