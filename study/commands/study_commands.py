@@ -117,7 +117,8 @@ def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
         need = D.needs(plan)
     # what the run plans for: the profile's policy (runs pruned once judged, or whole while they refine)
     pruned = prof.runs_while_refining == "pruned" or study.precision.rule != "figures"
-    disk = D.summary(need, D.free_bytes(study.cache.root), pruned)
+    removing = None if study.precision.rule != "figures" else not prof.keep_superseded
+    disk = D.summary(need, D.free_bytes(study.cache.root), pruned, removing)
     rows, totals = [], {}
     for name, sw in work.items():
         row = {"scene": name, "resolution": [sw.width, sw.height], "references": sw.references,

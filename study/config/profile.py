@@ -2,7 +2,7 @@
 quick and full profiles are such files), and the thesis's columns among its techniques."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from . import defaults as D
 from study.config.protocols import Protocol
@@ -75,6 +75,11 @@ class Profile:
     # 'whole': a test's runs keep every judged frame while its references refine (as the disk allows,
     # study.engine.disk.fit); 'pruned': pruned once judged, made again if the test is refined
     runs_while_refining: str = "whole"
+    # False: a reference and the metrics records judged against it are removed once a finer bound
+    # replaces them for this study (study.engine.supersede; the thesis profile). True keeps them for a
+    # later study that starts there (an `ab` study's new column, a study of other scenes at the probe).
+    # It changes no figure nor decision: not in the profile's repr, which keys the decisions' replay.
+    keep_superseded: bool = field(default=True, repr=False)
     source: str = ""
     precision: Precision = Precision()    # how precise its references must be (study.engine.precision)
     video: Video = Video()                # the perceptual video metric (study.metrics.video)

@@ -189,6 +189,7 @@ class StudyModel(_Model):
     reference: dict[str, Any] = Field(default_factory=lambda: dict(D.REFERENCE))
     keep_frames: Literal["report", "all"] = D.KEEP_FRAMES
     runs_while_refining: Literal["whole", "pruned"] = "whole"
+    keep_superseded: bool = True
     precision: PrecisionEntry = Field(default_factory=PrecisionEntry)
     video: VideoEntry = Field(default_factory=VideoEntry)
     render_scale: list[float] = Field(default_factory=list)
@@ -317,6 +318,7 @@ def load_study(path: str | Path) -> Profile:
                    scenes=tuple(scenes), techniques=tuple(configs), out=out, agreement=m.agreement,
                    sweep=m.sweep, sharpen_sweep=tuple(m.sharpen_sweep), sharpen_sweep_scenes=tuple(m.sharpen_sweep_scenes),
                    thesis_history=st.thesis_history, keep_frames=m.keep_frames, runs_while_refining=m.runs_while_refining,
+                   keep_superseded=m.keep_superseded,
                    source=str(path),
                    precision=Precision(**m.precision.model_dump()), video=Video(**m.video.model_dump()))
 

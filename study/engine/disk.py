@@ -123,19 +123,33 @@ def size(n: float) -> str:
     return f"{n / 2 ** 10:.1f} KB"
 
 
-def summary(need: dict, free: int, pruned: bool) -> dict:
+def refining(need: dict) -> int:
+    """The bytes one refinement round adds at once where superseded artefacts are removed
+    (study.engine.supersede): every test's references again at a finer bound beside the probe's,
+    which stay (the display's). The metrics records judged against the coarser ones are removed
+    before the finer are judged, so one round's records are on disk at a time."""
+    return need["references"]
+
+
+def summary(need: dict, free: int, pruned: bool, removing: bool | None = None) -> dict:
     """What `estimate` reports of the plan's disk `need` (needs), in GB: references, maps, runs whole
     and pruned, `free`, the peak with every test's runs whole while it refines, the least (every
     test's runs pruned once judged, IN_FLIGHT being judged), each with its margin, and the peak
-    planned: the least if `pruned` (the profile's runs_while_refining, or nothing refined)."""
+    planned: the least if `pruned` (the profile's runs_while_refining, or nothing refined).
+    `removing`: superseded artefacts removed as the study refines (keep_superseded false): each
+    peak is the max over rounds, a refinement of every test's references in flight (`refining`);
+    False: they are kept, and the figures price the first round only (each refinement adds its
+    references and records); None: nothing is refined (the per-pixel rule)."""
     gb = 2 ** 30
     tests = need["tests"].values()
     whole, kept = sum(w for w, _ in tests), sum(k for _, k in tests)
+    extra = refining(need) if removing else 0
     out = {"references_gb": need["references"] / gb, "maps_gb": need["maps"] / gb, "runs_whole_gb": whole / gb,
-           "runs_kept_gb": kept / gb, "free_gb": free / gb,
-           "peak_gb": (need["references"] + need["maps"] + whole + margin(need)) / gb,
-           "least_gb": (need["references"] + need["maps"] + kept + IN_FLIGHT * need["run"] + margin(need)) / gb,
-           "runs_while_refining": "pruned" if pruned else "whole"}
+           "runs_kept_gb": kept / gb, "free_gb": free / gb, "refining_gb": extra / gb,
+           "peak_gb": (need["references"] + extra + need["maps"] + whole + margin(need)) / gb,
+           "least_gb": (need["references"] + extra + need["maps"] + kept + IN_FLIGHT * need["run"] + margin(need)) / gb,
+           "runs_while_refining": "pruned" if pruned else "whole",
+           "superseded": {True: "removed", False: "kept", None: "none"}[removing]}
     out["planned_gb"] = out["least_gb"] if pruned else out["peak_gb"]
     return out
 
@@ -153,25 +167,41 @@ def describe(disk: dict, remake_s: float | None = None) -> list[str]:
             f"{disk['least_gb']:.1f} GB with runs pruned once judged (a test refined again then remakes "
             f"its runs), each with its margin",
             f"disk planned: {disk['planned_gb']:.1f} GB (runs {disk['runs_while_refining']} while their tests "
-            f"refine: the profile's runs_while_refining{cost})"]
+            f"refine: the profile's runs_while_refining{cost})", _assumes(disk)]
+
+
+def _assumes(disk: dict) -> str:
+    """`estimate`'s line on which rounds the peaks price (summary's `superseded`)."""
+    sup = disk.get("superseded", "none")
+    if sup == "removed":
+        return (f"disk peaks assume one refinement of every test's references in flight ({disk['refining_gb']:.1f} GB "
+                "beside the probe's, which the display keeps): a reference a finer bound replaces, and the "
+                "metrics records judged against it, are removed before the finer round renders (keep_superseded = false)")
+    if sup == "kept":
+        return ("disk peaks price the first round only: each refinement round adds its references and metrics records, "
+                "and a superseded one stays for a later study (keep_superseded = true)")
+    return "disk peaks: one round (nothing is refined under the per-pixel rule)"
 
 
 def fit(need: dict, free: int, figures: bool, folder: Path, already: frozenset = frozenset(),
-        log=print) -> frozenset:
+        log=print, reserve: int = 0) -> frozenset:
     """The tests whose runs are pruned once judged: `already` and, if the others' runs do not all
     fit whole, the largest (by the bytes keeping them whole costs) until the rest fit. With
     `figures` False (the per-pixel rule, nothing refined) every test is. Raises DiskError if the
-    plan does not fit even so (checked each round: finer references take room too)."""
+    plan does not fit even so (checked each round: finer references take room too), with `reserve`
+    bytes beside it (the first round of a study that removes superseded artefacts: `refining`)."""
     tests = need["tests"]
     kept = need["maps"] + sum(k for _, k in tests.values())
     flight = IN_FLIGHT * need.get("run", 0)          # runs whole between their run and metrics tasks
     spare = margin(need)
-    floor = need["references"] + kept + flight + spare
+    floor = need["references"] + kept + flight + spare + reserve
     gb = 2 ** 30
     if floor > free:
         raise DiskError(f"the study needs about {size(floor)} in the cache folder {folder} (references "
                         f"{size(need['references'])}, the runs' kept frames and maps {size(kept)}, "
-                        f"{IN_FLIGHT} runs being judged {size(flight)}, {size(spare)} spare: "
+                        f"{IN_FLIGHT} runs being judged {size(flight)}, "
+                        + (f"one refinement's references {size(reserve)}, " if reserve else "")
+                        + f"{size(spare)} spare: "
                         f"{MARGIN_SHARE:.0%} of these, {size(MARGIN_MIN)} to {size(MARGIN)}) and "
                         f"{size(free)} is free: free some, or set TAA_STUDY_CACHE to a larger disk")
     if not figures:

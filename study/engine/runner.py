@@ -27,6 +27,7 @@ from study.engine.plan import Planner
 from study.config.precision import Precision
 from study.engine import disk as D
 from study.engine import precision as P
+from study.engine import supersede as S
 from study.engine.precision import decide, figures_of
 from study.engine.rounds import FigureKey, InstantKey, Progress, Request, Round, TestKey, log_judged
 from study.engine.rounds import seeded_early as _seeded_early
@@ -168,12 +169,16 @@ class Study:
         probe (an A/B comparison: its new column is judged there, and refined only if over)."""
         ask = Request(specs, configs, agreement, sweep, ghosting, sharpen, seeded)
         state = self.recall_decisions(ask)
+        # the round before (or what a killed study's last round read): what a finer one replaced is removed
+        self._last = getattr(self, "_resumed", None)
         with Session(self.executor, self.log, self.deadline) as session:     # one cluster for every round
             while not state.finished:
                 state, rnd = self.plan_round(ask, state)
+                self._last = S.before_round(self, self._last, rnd)
                 state = self.execute_round(session, rnd, state)
                 if not state.finished:
                     state = self.decide_next(ask, rnd, state, self.judge_round(rnd, state))
+                    S.file_progress(self, state, rnd)
         self.file_decisions(state)
         return self.gather(rnd, state, session)
 
@@ -197,6 +202,8 @@ class Study:
                 levels, tried, over, drifts = P.from_record(memo["replayed"])
                 self.log("precision: every test's bound as decided by an earlier study of the same inputs")
                 state = replace(state, levels=levels, tried=tried, over=over, drifts=drifts, memo=memo, final=True)
+            elif not self.profile.keep_superseded and (got := S.resume(self, inputs)):
+                state = replace(state, **got)      # a killed study's coarser references are gone
         return self._adopt(state)
 
     def plan_round(self, ask: Request, state: Progress) -> tuple[Progress, Round]:
@@ -223,8 +230,10 @@ class Study:
         whether a study decided from it before."""
         figures = self.precision.rule == "figures"
         whole = figures and self.profile.runs_while_refining == "whole"    # else every test's runs are pruned once judged
-        pruned = D.fit(D.needs(rnd.plan), D.free_bytes(self.cache.root), whole, self.cache.root, state.pruned,
-                       self.log)
+        free = D.free_bytes(self.cache.root) + S.freeable(self, getattr(self, "_last", None), rnd)   # superseded
+        need = D.needs(rnd.plan)      # the first round of a study that removes what it supersedes: one refinement kept free
+        reserve = D.refining(need) if S.removing(self) and not state.rounds and not state.final else 0
+        pruned = D.fit(need, free, whole, self.cache.root, state.pruned, self.log, reserve)
         if figures and pruned != state.pruned:
             return replace(state, pruned=pruned), True          # their metrics prune their runs
         if not figures or state.memo is not None:
@@ -321,6 +330,7 @@ class Study:
                                       P.to_record(state.levels, state.tried, state.over, state.drifts))
         if memo is not None:
             P.remember(memo["store"], state.inputs, memo["key"])
+        S.forget_progress(store, state.inputs)
         store.save_hashes()
 
     def gather(self, rnd: Round, state: Progress, session: Session) -> StudyResults:
