@@ -19,13 +19,22 @@ settings) where no moving object nor its shadow reaches: its key then hashes fra
 (`reuse_from`, itself chained back to frame `reuse_since`, the last frame rendered whole), so no
 reference is ever read for a chain it was not derived from; each pixel's smallest and largest
 sample (`sample_lo.R/G/B`, `sample_hi.R/G/B`: what the next frame's unseen-feature floor reads)
-and which pixels were kept (`reused`) are stored with it. Only then: nothing else reads the
-extremes, and they are the noisiest channels (29 % of a noisy scene's file, sphere_ghosting at
-320x180); a reference first rendered without reuse is no source for the next frame, which is then
-rendered whole and starts the chain.
+and which pixels were kept (`reused`) are stored with it. Only then, and beside it, in its own file
+(`<key>.extremes.exr`): nothing but the next frame's render reads the extremes, and they are the
+noisiest channels (18 of a 1600x900 sphere_ghosting reference's 42 bytes a pixel), so they are
+deleted once that frame is made from them. A reference whose extremes are gone (or first rendered
+without reuse) is no source for the next frame, which is then rendered whole and starts the chain:
+its estimate is as unbiased, not the same bits (a study that removes what it no longer reads,
+study.engine.supersede, then needs that frame again only if it removed it).
+
+Each reference also files the display transform its image gives (`<key>.display.json`,
+display.DisplayTransform.from_reference: two numbers): a study's display transforms come from its
+probe references (study.engine.tasks.display_of), which it may then remove once it has refined
+past them (study.engine.supersede) without rendering them again for the transform.
 """
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import os
@@ -97,6 +106,30 @@ class ReferenceCache:
     def path(self, scene: ResolvedScene, key: str) -> Path:
         return self.root / "references" / scene.name / f"{key}.exr"
 
+    def settings_key(self, scene: ResolvedScene, t: int, width: int, height: int, *, se_bound_lsb=S.SE_BOUND_LSB,
+                     target_noise_db=S.TARGET_NOISE_DB, spp_per_pass=2, held_out=False, reuse=False,
+                     reuse_since=0) -> str:
+        """The key of the reference `get` returns for these settings (the study's names)."""
+        return self.key(scene, t, width, height, bound_lsb=se_bound_lsb, target=target_noise_db,
+                        spp_per_pass=spp_per_pass, held_out=bool(held_out), reuse=reuse, reuse_since=reuse_since)
+
+    def display(self, scene: ResolvedScene, t: int, width: int, height: int, **settings):
+        """(key, display.DisplayTransform) of the reference `get` would return for these settings:
+        from its display record where filed (the reference itself may be gone), else from the
+        reference (rendered if missing), its record filed then."""
+        key = self.settings_key(scene, t, width, height, **settings)
+        got = read_display(self.path(scene, key), key)
+        if got is not None:
+            return key, got
+        ref = self.get(scene, t, width, height, **settings)[0]
+        disp = write_display(self.path(scene, key), key, ref.image)
+        return key, disp
+
+    def has_display(self, scene: ResolvedScene, t: int, width: int, height: int, **settings) -> bool:
+        """Whether `display` needs no render: the display record or the reference is in the cache."""
+        path = self.path(scene, self.settings_key(scene, t, width, height, **settings))
+        return display_path(path).exists() or path.exists()
+
     def _read(self, path: Path, key: str, shape) -> Reference | None:
         try:
             h, ch = read_exr(path)
@@ -112,7 +145,13 @@ class ReferenceCache:
                 raise ValueError("wrong shape or NaN/Inf pixels")
             history = [tuple(x) for x in json.loads(h.get("taa_convergence", "[]"))]
             extra = {}
-            if "sample_lo.R" in ch:
+            side = extremes_path(path)
+            if "sample_lo.R" not in ch and side.exists():   # the extremes, kept beside it until the next frame is made
+                sh, sch = read_exr(side)
+                if sh.get("taa_key") != key:
+                    raise ValueError(f"{side.name}: header key {sh.get('taa_key')!r} != {key!r}")
+                ch = {**ch, **sch}
+            if "sample_lo.R" in ch:       # (written inside the reference by earlier versions)
                 extra = {f"sample_{n}": np.stack([ch[f"sample_{n}.{c}"] for c in "RGB"], -1).astype(np.float32)
                          for n in ("lo", "hi")}
             if "reused" in ch:
@@ -140,24 +179,27 @@ class ReferenceCache:
                   "taa_reused": int(0 if ref.reused is None else ref.reused.sum()),
                   "taa_convergence": json.dumps([[int(round(a)), round(float(b), 4), round(float(c), 3),
                                                   round(float(d), 3)] for a, b, c, d in ref.noise_history])}
-        chans = {"RGB": ref.image, "spp": ref.spp_map}
+        chans, side = {"RGB": ref.image, "spp": ref.spp_map}, {}
         for k, c in enumerate("RGB"):
             chans[f"stderr.{c}"] = ref.stderr[..., k]
             chans[f"display_stderr.{c}"] = ref.display_stderr[..., k]
             chans[f"display_floor.{c}"] = ref.display_floor[..., k]
             chans[f"half_delta.{c}"] = ref.half_delta[..., k]
             if ref.sample_lo is not None and extremes:      # a source of the next frame's reuse
-                chans[f"sample_lo.{c}"], chans[f"sample_hi.{c}"] = ref.sample_lo[..., k], ref.sample_hi[..., k]
+                side[f"sample_lo.{c}"], side[f"sample_hi.{c}"] = ref.sample_lo[..., k], ref.sample_hi[..., k]
         if ref.reused is not None:
             chans["reused"] = ref.reused.astype(np.float32)
+        write_display(path, ref.key, ref.image)
+        if side:        # first: a reference found has its extremes (a stray one alone is ignored)
+            write_exr(extremes_path(path), side, {"taa_key": ref.key}, compression="smallest")
         write_exr(path, chans, header, compression="smallest")   # ZIP or Zstandard (references.exr)
 
     def has(self, scene: ResolvedScene, t: int, width: int, height: int, *, se_bound_lsb=S.SE_BOUND_LSB,
             target_noise_db=S.TARGET_NOISE_DB, spp_per_pass=2, held_out=False, reuse=False, reuse_since=0) -> bool:
         """Whether the reference `get` would return is in the cache (not verified)."""
-        return self.path(scene, self.key(scene, t, width, height, bound_lsb=se_bound_lsb, target=target_noise_db,
-                                         spp_per_pass=spp_per_pass, held_out=bool(held_out), reuse=reuse,
-                                         reuse_since=reuse_since)).exists()
+        return self.path(scene, self.settings_key(scene, t, width, height, se_bound_lsb=se_bound_lsb,
+                                                  target_noise_db=target_noise_db, spp_per_pass=spp_per_pass,
+                                                  held_out=held_out, reuse=reuse, reuse_since=reuse_since)).exists()
 
     def get(self, scene: ResolvedScene, t: int, width: int, height: int, *, se_bound_lsb=S.SE_BOUND_LSB,
             target_noise_db=S.TARGET_NOISE_DB, spp_per_pass=2, held_out=False, reuse=False, reuse_since=0,
@@ -166,8 +208,8 @@ class ReferenceCache:
         and the mean noise >= target_noise_db, or the pixels that hit the sample cap counted.
         `reuse`: keep frame t - 1's estimate (at these settings, got from here: rendered first if
         missing) where references.reuse finds nothing changes, back to frame `reuse_since`."""
-        key = self.key(scene, t, width, height, bound_lsb=se_bound_lsb, target=target_noise_db,
-                       spp_per_pass=spp_per_pass, held_out=bool(held_out), reuse=reuse, reuse_since=reuse_since)
+        key = self.settings_key(scene, t, width, height, se_bound_lsb=se_bound_lsb, target_noise_db=target_noise_db,
+                                spp_per_pass=spp_per_pass, held_out=held_out, reuse=reuse, reuse_since=reuse_since)
         path = self.path(scene, key)
         if path.exists():
             ref = self._read(path, key, (height, width, 3))
@@ -184,4 +226,42 @@ class ReferenceCache:
                                progress=progress, reuse_from=prev)
         ref.key = key
         self._write(path, ref, scene, t, extremes=bool(reuse))
+        if prev is not None:     # its extremes made this frame: read by nothing else
+            extremes_path(self.path(scene, prev.key)).unlink(missing_ok=True)
         return ref, False
+
+
+def extremes_path(path: Path) -> Path:
+    """Where the sample extremes of the reference at `path` are kept until the next frame is made."""
+    return path.with_name(path.stem + ".extremes.exr")
+
+
+def display_path(path: Path) -> Path:
+    """The display record of the reference at `path`."""
+    return path.with_name(path.stem + ".display.json")
+
+
+def write_display(path: Path, key: str, image: np.ndarray):
+    """File the display transform of the reference image (key `key`) at `path`; returns it."""
+    from display import DisplayTransform
+    disp = DisplayTransform.from_reference(image)
+    rec, out = display_path(path), {"taa_key": key, **dataclasses.asdict(disp)}
+    rec.parent.mkdir(parents=True, exist_ok=True)
+    tmp = rec.with_name(f".{rec.name}.{os.getpid()}.tmp")
+    tmp.write_text(json.dumps(out, sort_keys=True))
+    os.replace(tmp, rec)
+    return disp
+
+
+def read_display(path: Path, key: str):
+    """The display transform filed beside the reference at `path` (its key `key`), or None."""
+    from display import DisplayTransform
+    try:
+        rec = json.loads(display_path(path).read_text())
+        if rec.pop("taa_key") != key:
+            return None
+        disp = DisplayTransform(**rec)
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    vals = [float(v) for v in dataclasses.asdict(disp).values()]
+    return disp if all(np.isfinite(v) and v > 0 for v in vals) else None

@@ -67,13 +67,16 @@ def test_kept_files_round_trip_bit_for_bit_in_each_lossless_codec(tmp_path):
     assert _same_bits(np.stack([st.read_image(tmp_path / "c" / "f", "frame_0001.exr", rec)[c] for c in "RGB"], -1), noise)
 
 
-def test_a_cached_reference_keeps_its_halves_bit_for_bit_and_its_extremes_only_for_reuse(tmp_path):
+def test_a_cached_reference_keeps_its_halves_bit_for_bit_and_its_extremes_beside_it_only_for_reuse(tmp_path):
     """The reference cache stores the image, standard errors, floor and halves exactly; a
     reference's sample extremes (what the next frame's reuse reads, nothing else) only when
-    rendered for reuse: 6 of 22 channels, the noisiest."""
+    rendered for reuse, in a file beside it (`<key>.extremes.exr`, 6 of 22 channels, the noisiest:
+    deleted once the next frame is made); its display transform in a record beside it, read
+    without the reference."""
     from types import SimpleNamespace
 
-    from references.cache import ReferenceCache
+    from display import DisplayTransform
+    from references.cache import ReferenceCache, display_path, extremes_path, read_display
     from references.exr import read_exr
     from references.result import Reference
     rng = np.random.default_rng(5)
@@ -95,10 +98,16 @@ def test_a_cached_reference_keeps_its_halves_bit_for_bit_and_its_extremes_only_f
         for half, want in zip(back.halves(), ref.halves()):
             assert _same_bits(half, want)
         assert np.array_equal(back.spp_map, ref.spp_map)
-        assert ("sample_lo.R" in read_exr(path)[1]) is reuse
+        assert "sample_lo.R" not in read_exr(path)[1] and extremes_path(path).exists() is reuse
         assert (back.sample_lo is not None) is reuse
         if reuse:
             assert _same_bits(back.sample_lo, ref.sample_lo) and _same_bits(back.sample_hi, ref.sample_hi)
+            extremes_path(path).unlink()          # as once the next frame is made: no longer a source
+            assert cache._read(path, ref.key, (27, 48, 3)).sample_lo is None
+        assert read_display(path, ref.key) == DisplayTransform.from_reference(ref.image)
+        assert read_display(path, "other" * 4) is None          # a record of another key is not read
+    display_path(path).write_text('{"taa_key": "%s", "log_average": NaN, "white": 1, "key": 0.18}' % ref.key)
+    assert read_display(path, ref.key) is None                  # nor a record with a NaN
 
 
 def _real_bytes(root):
@@ -112,7 +121,7 @@ def _real_bytes(root):
             ch = read_exr(f)[1]
             h, w = next(iter(ch.values())).shape[:2]
             real += f.stat().st_size
-            allowed += D.file_bytes(kind, w, h, "sample_lo.R" in ch)
+            allowed += D.file_bytes("extremes" if f.name.endswith(".extremes.exr") else kind, w, h)
         out[kind] = (real, allowed)
     return out
 

@@ -156,6 +156,13 @@ def test_a_reused_frames_key_hashes_the_frame_it_derives_from(tmp_path):
     assert cache.has(scene, 1, W, H, **FAST) and not cache.has(scene, 2, W, H, **FAST)
     assert cache.has(scene, 2, W, H, reuse=True, reuse_since=1, **FAST)
     assert not cache.has(scene, 2, W, H, reuse=True, reuse_since=0, **FAST)
+    # frame 1's extremes made frame 2 and went (nothing else reads them); frame 2's, the chain's
+    # end, stay beside it for frame 3
+    from references.cache import extremes_path
+    first = cache.path(scene, cache.settings_key(scene, 1, W, H, **FAST))
+    last = cache.path(scene, cache.settings_key(scene, 2, W, H, reuse=True, reuse_since=1, **FAST))
+    assert first.exists() and not extremes_path(first).exists() and extremes_path(last).exists()
+    assert cache.get(scene, 1, W, H, reuse=True, reuse_since=1, **FAST)[0].sample_lo is None
 
 
 def test_a_ghosting_tests_references_chain_over_runs_of_frames_at_one_setting(tmp_path):

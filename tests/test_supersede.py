@@ -22,7 +22,8 @@ def _study(root, keep: bool):
 
 def _refs(root) -> dict:
     """reference file name -> its bound (LSB)."""
-    return {p.name: float(read_exr(p)[0]["taa_bound_lsb"]) for p in (root / "references").rglob("*.exr")}
+    return {p.name: float(read_exr(p)[0]["taa_bound_lsb"]) for p in (root / "references").rglob("*.exr")
+            if not p.name.endswith(".extremes.exr")}
 
 
 def _figures(res) -> list:
@@ -64,9 +65,11 @@ def test_a_refined_instants_coarser_reference_is_removed_and_the_figures_are_tho
     a, b = _refs(root / "kept"), _refs(root / "removed")
     gone = {n: bound for n, bound in a.items() if n not in b}
     assert set(b) < set(a) and gone, (a, b)
-    # what went is an intermediate bound: neither the probe's (the display's) nor a final one
+    # what went is a bound refined past: the probe's (its display transforms kept as records) or an
+    # intermediate one, not a final one
     finals = {float(x) for p in kept.precision["tiny_moving"].values() for x in p["bounds"]}
-    assert all(8.0 > bound and bound not in finals or bound == 0.25 for bound in gone.values()), gone
+    assert all(bound not in finals or bound == 0.25 for bound in gone.values()), gone
+    assert 8.0 in gone.values() and any(b < 8.0 for b in gone.values()), gone
     assert any(m.startswith("disk: ") and "superseded removed" in m for m in logs), logs
     # metrics records judged against a removed reference went too; nothing is left in the trash
     n = lambda r: len(list((r / "metrics").rglob("done.json")))    # noqa: E731
@@ -75,14 +78,26 @@ def test_a_refined_instants_coarser_reference_is_removed_and_the_figures_are_tho
 
 
 @pytest.mark.long(seconds=1)
-def test_a_reference_still_read_elsewhere_stays(studies):
-    """The probe's references at 8 LSB are superseded for every test here (each refined) but are
-    the display's references (its frames' display transform, the display-space runs' key): kept,
-    each one; and every reference the final round reads is there."""
+def test_a_removed_probe_leaves_its_display_transform_and_is_never_rendered_again(studies):
+    """The probe's references at 8 LSB are the display's (each frame's display transform, the
+    display-space runs' key). Refined past, each is removed with the rest, its transform kept as
+    its record (references.cache); a probe an unrefined instant still judges against stays. Nothing
+    was rendered: every display transform was read from a record, and each equals the one its
+    reference gives."""
+    from references.cache import display_path, read_display
+    from display import DisplayTransform
     root, _, out = studies
     a, b = _refs(root / "kept"), _refs(root / "removed")
     probe = {n for n, bound in a.items() if bound == 8.0}
-    assert probe and probe <= set(b), (probe, b)
+    gone = probe - set(b)
+    assert gone, (probe, b)
+    for name in probe:
+        path = next((root / "removed" / "references").rglob(name.replace(".exr", ".display.json"))).with_name(name)
+        kept_path = next((root / "kept" / "references").rglob(name))
+        got = read_display(path, path.stem)
+        assert got == DisplayTransform.from_reference(
+            __import__("numpy").stack([read_exr(kept_path)[1][c] for c in "RGB"], -1)), name
+        assert display_path(path).exists() and (path.exists() == (name not in gone))
     assert out["removed"][0].stats["references_rendered"] == 0     # each read where it was seeded
 
 
@@ -122,22 +137,18 @@ def test_a_killed_study_resumes_at_its_finer_bounds(studies, tmp_path, monkeypat
     assert not list((tmp_path / "precision" / "progress").rglob("*.json"))      # finished: nothing to resume
 
 
-def test_the_disk_plan_prices_one_refinement_in_flight_where_superseded_artefacts_are_removed(tmp_path):
-    """study.engine.disk: removing what a finer bound supersedes, the peak is the first round's
-    files and one refinement of every test's references beside the probe's; the first round's
-    check keeps that free (a disk that holds the first round alone is refused), and `estimate`
-    says what it assumes."""
+def test_the_disk_plan_holds_over_every_round_where_superseded_artefacts_are_removed(tmp_path):
+    """study.engine.disk: removing what a finer bound supersedes (the probe's references too, their
+    display transforms kept as records) before the finer round renders, the peak is one round's
+    files, and `estimate` says what it assumes; a disk that does not hold one round is refused."""
     from study.engine import disk as D
     mb = 2 ** 20
     need = {"references": 40 * mb, "maps": 10 * mb, "tests": {("s", "ghosting"): (300 * mb, 5 * mb)}, "run": 0}
     first = 40 * mb + 10 * mb + 5 * mb + D.margin(need)          # references, maps, shown frames, margin
-    assert D.refining(need) == 40 * mb
     kept, removed = D.summary(need, 10 ** 12, True, False), D.summary(need, 10 ** 12, True, True)
-    assert kept["planned_gb"] * 2 ** 30 == pytest.approx(first)
-    assert removed["planned_gb"] * 2 ** 30 == pytest.approx(first + 40 * mb)
-    assert "one refinement of every test's references in flight" in D.describe(removed)[-1]
+    assert kept["planned_gb"] * 2 ** 30 == pytest.approx(first) == removed["planned_gb"] * 2 ** 30
+    assert "hold over every round" in D.describe(removed)[-1] and "display transform" in D.describe(removed)[-1]
     assert "the first round only" in D.describe(kept)[-1]
-    D.fit(need, first, False, tmp_path)                            # the first round alone fits
-    with pytest.raises(D.DiskError, match=r"one refinement's references 40.0 MB"):
-        D.fit(need, first, False, tmp_path, reserve=D.refining(need))
-    D.fit(need, first + 40 * mb, False, tmp_path, reserve=D.refining(need))
+    D.fit(need, first, False, tmp_path)
+    with pytest.raises(D.DiskError, match=r"references 40.0 MB"):
+        D.fit(need, first - mb, False, tmp_path)

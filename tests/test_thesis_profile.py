@@ -68,12 +68,16 @@ def test_estimate_plans_the_thesis_study_and_its_peak_disk(tmp_path, monkeypatch
         assert rows[s]["references"] == 100
     d = doc["disk"]
     assert d["peak_gb"] > d["least_gb"] > d["references_gb"] + d["maps_gb"] + d["runs_kept_gb"]
-    # superseded references removed as it refines: one refinement of every test's references in flight
-    assert d["superseded"] == "removed" and d["refining_gb"] == d["references_gb"] > 0
-    assert abs(d["peak_gb"] - (2 * d["references_gb"] + d["maps_gb"] + d["runs_whole_gb"])) <= 2.0   # + the margin
-    text = CliRunner().invoke(main, ["estimate", "--profile", "thesis"], catch_exceptions=False).output
-    assert "disk peaks assume one refinement of every test's references in flight" in text
+    # superseded references removed as it refines, the probe's too (their display transforms kept as
+    # records): one round's references at a time
+    assert d["superseded"] == "removed" and "refining_gb" not in d
+    assert abs(d["peak_gb"] - (d["references_gb"] + d["maps_gb"] + d["runs_whole_gb"])) <= 2.0   # + the margin
+    # what `estimate` prints of it (the same figures, study.engine.disk.describe)
+    from study.engine.disk import describe
+    text = "\n".join(describe(d))
+    assert "disk peaks hold over every round" in text
     assert "disk at its peak:" in text and f"{d['peak_gb']:.1f} GB" in text
-    # it plans for its runs pruned once judged (runs_while_refining = "pruned"), remade if refined
-    assert d["runs_while_refining"] == "pruned" and d["planned_gb"] == d["least_gb"]
+    # it plans for its runs pruned once judged (runs_while_refining = "pruned"), remade if refined,
+    # within 15 GB with its margin
+    assert d["runs_while_refining"] == "pruned" and d["planned_gb"] == d["least_gb"] <= 15.0
     assert f"disk planned: {d['planned_gb']:.1f} GB (runs pruned while their tests refine" in text

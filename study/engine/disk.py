@@ -31,8 +31,8 @@ from study.engine.tasks import TaskError
 # standard errors, floor, halves' difference, spp; ZIP or Zstandard, the smaller: sphere_ghosting
 # 23.4, whose floor's path-traced noise ZIP kept at 36.7; hairball_rotating_unlit 11.0, hard_edges 6.3,
 # pipe 1.2),
-# a reference's sample extremes, stored only for reuse (references.cache: sphere_ghosting 17,
-# hard_edges 1, ZIP), a frame's maps (SSIM, FLIP LDR and HDR, Zstandard: 0.8-6.3 measured on No
+# a reference's sample extremes, stored for reuse until the next frame is made (references.cache:
+# sphere_ghosting 17, hard_edges 1, ZIP), a frame's maps (SSIM, FLIP LDR and HDR, Zstandard: 0.8-6.3 measured on No
 # AA's frames, 10 on the noisiest), a frame shown by the report, kept as its 8-bit PNG
 # (0.02-0.14 for a raster frame, SHOWN_BYTES for the most detailed TAA output measured)
 FRAME_BYTES, REFERENCE_BYTES, EXTREMES_BYTES, MAPS_BYTES, SHOWN_BYTES = 7, 24, 18, 11, 1
@@ -59,8 +59,13 @@ def needs(plan) -> dict:
     pruning frees, of the runs written whole before they are judged}. A run two tests read counts
     once, for the first. A run whose shown frames are kept as 8-bit PNGs (every run but those the
     video metric reads) is judged as it is made once pruned: never whole on disk then."""
-    refs = sum(file_bytes("reference", t.spec.width, t.spec.height, bool(t.spec.settings.get("reuse")), t.spec.scene)
-               for t in plan.tasks.values() if t.kind == "reference" and not t.likely_cached)
+    new = [t for t in plan.tasks.values() if t.kind == "reference" and not t.likely_cached]
+    refs = sum(file_bytes("reference", t.spec.width, t.spec.height, scene=t.spec.scene) for t in new)
+    # a reference's sample extremes stay only until the next frame of its chain is made from them
+    # (references.cache): each chain's last frame's, and those of the frames being rendered
+    chains = {(t.spec.scene, t.spec.width, t.spec.height, repr(sorted(t.spec.settings.items()))): t.spec
+              for t in new if t.spec.settings.get("reuse")}
+    refs += (len(chains) + IN_FLIGHT) * max([file_bytes("extremes", c.width, c.height) for c in chains.values()] or [0])
     made = {k for t in plan.tasks.values() if t.kind == "run" for k in t.spec.keys.values()}   # runs it makes
     as_png = {it["key"]: it.get("shown_8bit", True) for t in plan.tasks.values() if t.kind == "metrics"
               for it in t.spec.items}
@@ -87,24 +92,23 @@ def needs(plan) -> dict:
     return {"references": refs, "maps": maps, "tests": tests, "run": run}
 
 
-def file_bytes(kind: str, width: int, height: int, extremes: bool = False, scene: str | None = None) -> int:
+def file_bytes(kind: str, width: int, height: int, scene: str | None = None) -> int:
     """The bytes one file takes on disk, at most (as measured: see the constants).
 
     Parameters
     ----------
-    kind : {'frame', 'reference', 'maps', 'shown'}
-        A run's judged frame, a reference, a judged frame's SSIM/FLIP maps, or a frame the report
-        shows kept as its 8-bit PNG.
+    kind : {'frame', 'reference', 'extremes', 'maps', 'shown'}
+        A run's judged frame, a reference, a reference's sample extremes (kept beside it until the
+        next frame is made from them, references.cache), a judged frame's SSIM/FLIP maps, or a frame
+        the report shows kept as its 8-bit PNG.
     width, height : int
         Its size in pixels.
-    extremes : bool
-        A reference that stores its sample extremes (rendered for reuse, references.cache).
     scene : str, optional
         A reference's scene: its measured size (REFERENCE_BYTES_OF) if it has one.
     """
     per = {"frame": FRAME_BYTES, "reference": REFERENCE_BYTES_OF.get(scene, REFERENCE_BYTES), "maps": MAPS_BYTES,
-           "shown": SHOWN_BYTES}[kind]
-    return width * height * (per + (EXTREMES_BYTES if extremes else 0)) + FILE_BYTES
+           "shown": SHOWN_BYTES, "extremes": EXTREMES_BYTES}[kind]
+    return width * height * per + FILE_BYTES
 
 
 def margin(need: dict) -> int:
@@ -123,31 +127,23 @@ def size(n: float) -> str:
     return f"{n / 2 ** 10:.1f} KB"
 
 
-def refining(need: dict) -> int:
-    """The bytes one refinement round adds at once where superseded artefacts are removed
-    (study.engine.supersede): every test's references again at a finer bound beside the probe's,
-    which stay (the display's). The metrics records judged against the coarser ones are removed
-    before the finer are judged, so one round's records are on disk at a time."""
-    return need["references"]
-
-
 def summary(need: dict, free: int, pruned: bool, removing: bool | None = None) -> dict:
     """What `estimate` reports of the plan's disk `need` (needs), in GB: references, maps, runs whole
     and pruned, `free`, the peak with every test's runs whole while it refines, the least (every
     test's runs pruned once judged, IN_FLIGHT being judged), each with its margin, and the peak
     planned: the least if `pruned` (the profile's runs_while_refining, or nothing refined).
     `removing`: superseded artefacts removed as the study refines (keep_superseded false): each
-    peak is the max over rounds, a refinement of every test's references in flight (`refining`);
+    peak is the max over rounds, a finer round's references in place of those they replace (these
+    are removed before it renders, the probe's too: their display transforms stay as records);
     False: they are kept, and the figures price the first round only (each refinement adds its
     references and records); None: nothing is refined (the per-pixel rule)."""
     gb = 2 ** 30
     tests = need["tests"].values()
     whole, kept = sum(w for w, _ in tests), sum(k for _, k in tests)
-    extra = refining(need) if removing else 0
     out = {"references_gb": need["references"] / gb, "maps_gb": need["maps"] / gb, "runs_whole_gb": whole / gb,
-           "runs_kept_gb": kept / gb, "free_gb": free / gb, "refining_gb": extra / gb,
-           "peak_gb": (need["references"] + extra + need["maps"] + whole + margin(need)) / gb,
-           "least_gb": (need["references"] + extra + need["maps"] + kept + IN_FLIGHT * need["run"] + margin(need)) / gb,
+           "runs_kept_gb": kept / gb, "free_gb": free / gb,
+           "peak_gb": (need["references"] + need["maps"] + whole + margin(need)) / gb,
+           "least_gb": (need["references"] + need["maps"] + kept + IN_FLIGHT * need["run"] + margin(need)) / gb,
            "runs_while_refining": "pruned" if pruned else "whole",
            "superseded": {True: "removed", False: "kept", None: "none"}[removing]}
     out["planned_gb"] = out["least_gb"] if pruned else out["peak_gb"]
@@ -174,9 +170,9 @@ def _assumes(disk: dict) -> str:
     """`estimate`'s line on which rounds the peaks price (summary's `superseded`)."""
     sup = disk.get("superseded", "none")
     if sup == "removed":
-        return (f"disk peaks assume one refinement of every test's references in flight ({disk['refining_gb']:.1f} GB "
-                "beside the probe's, which the display keeps): a reference a finer bound replaces, and the "
-                "metrics records judged against it, are removed before the finer round renders (keep_superseded = false)")
+        return ("disk peaks hold over every round: a reference a finer bound replaces (the probe's too: its display "
+                "transform stays as a record), and the metrics records judged against it, are removed before the "
+                "finer round renders (keep_superseded = false)")
     if sup == "kept":
         return ("disk peaks price the first round only: each refinement round adds its references and metrics records, "
                 "and a superseded one stays for a later study (keep_superseded = true)")
@@ -184,23 +180,21 @@ def _assumes(disk: dict) -> str:
 
 
 def fit(need: dict, free: int, figures: bool, folder: Path, already: frozenset = frozenset(),
-        log=print, reserve: int = 0) -> frozenset:
+        log=print) -> frozenset:
     """The tests whose runs are pruned once judged: `already` and, if the others' runs do not all
     fit whole, the largest (by the bytes keeping them whole costs) until the rest fit. With
     `figures` False (the per-pixel rule, nothing refined) every test is. Raises DiskError if the
-    plan does not fit even so (checked each round: finer references take room too), with `reserve`
-    bytes beside it (the first round of a study that removes superseded artefacts: `refining`)."""
+    plan does not fit even so (checked each round: finer references take room too)."""
     tests = need["tests"]
     kept = need["maps"] + sum(k for _, k in tests.values())
     flight = IN_FLIGHT * need.get("run", 0)          # runs whole between their run and metrics tasks
     spare = margin(need)
-    floor = need["references"] + kept + flight + spare + reserve
+    floor = need["references"] + kept + flight + spare
     gb = 2 ** 30
     if floor > free:
         raise DiskError(f"the study needs about {size(floor)} in the cache folder {folder} (references "
                         f"{size(need['references'])}, the runs' kept frames and maps {size(kept)}, "
                         f"{IN_FLIGHT} runs being judged {size(flight)}, "
-                        + (f"one refinement's references {size(reserve)}, " if reserve else "")
                         + f"{size(spare)} spare: "
                         f"{MARGIN_SHARE:.0%} of these, {size(MARGIN_MIN)} to {size(MARGIN)}) and "
                         f"{size(free)} is free: free some, or set TAA_STUDY_CACHE to a larger disk")

@@ -146,9 +146,10 @@ class Judge:
         self.ref = cache.get(self.scene, t, self.w, self.h, **settings)[0]
         # one transform for all three; at a test's probe the reference is the probe: not read twice
         # (else display_of's, its reference's key kept for FrameFigures)
-        self.dref = self.ref if self.display_settings == settings else display_reference(
-            cache, self.scene, t, self.w, self.h, self.display_settings)
-        self.disp = DisplayTransform.from_reference(self.dref.image)
+        if self.display_settings == settings:
+            self.dkey, self.disp = self.ref.key, DisplayTransform.from_reference(self.ref.image)
+        else:
+            self.dkey, self.disp = display_reference(cache, self.scene, t, self.w, self.h, self.display_settings)
         self.refs = {hv: (*r, {}) for hv, r in judged_references(self.ref, self.disp).items()}   # {}: the memos
         self.t = t
 
@@ -157,18 +158,18 @@ class Judge:
         t = self.times[i][f]
         if t != self.t:
             self._at(t)
-        it, st, ref, dref, refs = self.items[i], self.state[i], self.ref, self.dref, self.refs
+        it, st, ref, dkey, refs = self.items[i], self.state[i], self.ref, self.dkey, self.refs
         x_lin, x_disp, x8 = self.disp.output(x, self.spaces[i])
         if f in self.shown[i]:
             self.writers[i].add_png(f"shown_{f:04d}.png", x8)
         keep = [hv == "" and f in it["maps_for"] for hv in refs]
-        figs = None if any(keep) else self.known[i].get(f, ref.key, dref.key)
+        figs = None if any(keep) else self.known[i].get(f, ref.key, dkey)
         if figs is None:
             judged = M.all_metrics_against(list(refs.values()), x_lin, x_disp, x8, want_maps=keep,
                                            hdr=it.get("hdr", True))
             figs = {hv: got for hv, (got, _) in zip(refs, judged)}
             st["maps"].update({f"maps_{f:04d}.exr": maps for (_, maps), k in zip(judged, keep) if k})
-            self.known[i].put(f, ref.key, dref.key, figs)
+            self.known[i].put(f, ref.key, dkey, figs)
         for hv, (_, _, r8, _) in refs.items():
             st["temporal"][hv].add(r8, x8)
         st["per_frame"][str(f)], st["uncertainty"][str(f)] = U.jackknife(figs[""], figs["a"], figs["b"])

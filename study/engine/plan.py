@@ -122,7 +122,7 @@ class Planner:
         the runs it will read keep every judged frame.
         `prune`: a metrics task prunes its runs to their kept frames once judged; without, the runs
         stay whole for a later round's references (the runner prunes a test's runs once it settles:
-        prune_runs); or the tests ((scene, protocol)) whose runs are pruned (study.engine.disk)."""
+        study.engine.prune); or the tests ((scene, protocol)) whose runs are pruned (study.engine.disk)."""
         from study.engine.store import Store
         self.ctx, self.ref_settings, self.agreement_samples = ctx, dict(ref_settings), agreement_samples
         self.ref_settings_of = dict(ref_settings_of or {})
@@ -168,6 +168,19 @@ class Planner:
             self.plan.tasks[key] = Task(key, ReferenceSpec(self.ctx, spec, t, w, h, dict(settings)), deps,
                                         likely_cached=ReferenceCache(self.store.root).has(scene, t, w, h, **settings))
         return key
+
+    def _refs(self, spec: str, scene, w: int, h: int, judged, shown=()) -> tuple:
+        """The reference tasks of `judged` ((t, settings) pairs) and of the display references of the
+        instants `shown` (`display_settings`), in order, once each; a display reference needs none
+        where its display record is filed and nothing judges against it (references.cache)."""
+        from references import ReferenceCache
+        out = [self._reference(spec, scene, t, w, h, s) for t, s in judged]
+        for t in shown:
+            key = self.reference_key(scene, t, w, h, self.display_settings)
+            if key in out or key in self.plan.tasks or not ReferenceCache(self.store.root).has_display(
+                    scene, t, w, h, **self.display_settings):
+                out.append(self._reference(spec, scene, t, w, h, self.display_settings))
+        return tuple(dict.fromkeys(out))
 
     # -- tests -----------------------------------------------------------------------------------------
     def add_test(self, spec: str, scene, protocol: Protocol, configs: list[TechniqueConfig],
@@ -252,7 +265,7 @@ class Planner:
                     self._feeds_of[test.run_keys[c.label]].append((test.metrics_folders[c.label], test.metrics_keys[c.label]))
             run_dep = ()
             if need_run:
-                rdeps = tuple(self._reference(spec, scene, t, w, h, self.display_settings) for t in kept_t) \
+                rdeps = self._refs(spec, scene, w, h, (), kept_t) \
                     if any(c.make().inputs.display for c in need_run) else ()
                 rkey = task_key("runs", sorted(test.run_keys[c.label] for c in need_run),     # and what it judges
                                 sorted(test.metrics_keys[c.label] for c in streams if c in need_run))
@@ -273,16 +286,14 @@ class Planner:
                 self._judge_of[test.run_keys[cs[0].label]].append(
                     {"items": [self._item(test, c, vlabels) for c in cs], "ref_settings": {t: at[t] for t in ts}})
                 task = self.plan.tasks[rk]
-                task.deps = tuple(dict.fromkeys(task.deps + tuple(
-                    self._reference(spec, scene, t, w, h, s) for t in ts for s in (at[t], self.display_settings))))
+                task.deps = tuple(dict.fromkeys(task.deps + self._refs(spec, scene, w, h, [(t, at[t]) for t in ts], ts)))
             # one metrics task judges the test's missing techniques together (study.engine.judge); a
             # metrics key another test's task already judges (a shared run's) is left to it
             mine = [c for c in missing if test.metrics_keys[c.label] not in self._metrics_task_of]
             if mine:
                 ts = sorted({t for c in mine for t in test.frame_times[c.label].values()})
                 made_by = {shared.get(c.label) or (run_dep[0] if c in need_run else None) for c in mine} - {None}
-                deps = tuple(sorted(made_by)) + tuple(dict.fromkeys(
-                    self._reference(spec, scene, t, w, h, s) for t in ts for s in (at[t], self.display_settings)))
+                deps = tuple(sorted(made_by)) + self._refs(spec, scene, w, h, [(t, at[t]) for t in ts], ts)
                 items = [self._item(test, c, vlabels) for c in mine]
                 gkey = task_key("metrics-of", sorted(it["key"] for it in items))
                 self.plan.tasks[gkey] = Task(gkey, MetricsSpec(
@@ -327,9 +338,8 @@ class Planner:
         # a task per column: at ~7 s each (320x180) they fill a round's workers evenly, where one
         # task per test (~50 s) ended a round on one worker while the other waited
         for it in items:
-            deps = tuple({made[it["label"]]} - {None}) + tuple(dict.fromkeys(
-                self._reference(spec, scene, t, test.width, test.height, s)
-                for t in it["ts"] for s in (at[t], self.display_settings)))
+            deps = tuple({made[it["label"]]} - {None}) + self._refs(
+                spec, scene, test.width, test.height, [(t, at[t]) for t in it["ts"]], it["ts"])
             gkey = task_key("video-of", [it["key"]])
             self.plan.tasks[gkey] = Task(gkey, VideoSpec(
                 self.ctx, spec, test.width, test.height, [it], {t: at[t] for t in it["ts"]},
@@ -338,30 +348,6 @@ class Planner:
     def prunes(self, test: Test) -> bool:
         """Whether the test's metrics task prunes its runs once judged."""
         return self.prune is True or (isinstance(self.prune, frozenset) and (test.scene, test.protocol.name) in self.prune)
-
-    def prune_runs(self, settled) -> int:
-        """Prune the runs of the plan's tests for which `settled((scene, protocol))` holds to the frames
-        they keep: a run several tests read (a shared run) keeps the union of theirs, and only once all
-        of them have settled. Returns the files dropped."""
-        keep: dict = {}
-        for t in self.plan.tests:
-            for label, folder in t.run_folders.items():
-                k = keep.setdefault((folder, t.run_keys[label]), {"frames": set(), "whole": False, "settled": True})
-                k["settled"] &= bool(settled((t.scene, t.protocol.name)))
-                if t.keep[label] is None:
-                    k["whole"] = True
-                else:
-                    k["frames"] |= set(t.keep[label])
-        dropped = 0
-        for (folder, key), k in keep.items():
-            if k["settled"] and not k["whole"]:
-                names = {f"frame_{f:04d}.exr" for f in k["frames"]}
-                rec = self.store.done(Path(folder), key)
-                if rec is None or set(rec["files"]) <= names:     # nothing to drop: no lock to take
-                    continue
-                with self.store.lock(task_key("run-lock", key)):      # as run_task, which (re)makes it
-                    dropped += self.store.prune(Path(folder), key, names)
-        return dropped
 
     def _run_intact(self, folder: Path, key: str, verify: bool) -> bool:
         """A run whose frames the report reads must be intact too (else it is re-made)."""
@@ -396,5 +382,4 @@ class Planner:
             return
         self.plan.tasks[key] = Task(key, AgreementSpec(
             self.ctx, spec, w, h, self.agreement_samples, settings, self.display_settings, key, str(path)),
-            tuple(dict.fromkeys((self._reference(spec, scene, 0, w, h, settings),
-                                 self._reference(spec, scene, 0, w, h, self.display_settings)))))
+            self._refs(spec, scene, w, h, [(0, settings)], [0]))

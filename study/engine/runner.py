@@ -34,6 +34,7 @@ from study.engine.rounds import seeded_early as _seeded_early
 from study.engine.store import Store
 from study.engine.stopping import StudyStopped, computed_counts, stop
 from study.engine.results import Artefacts, StudyResults, TestResult, run_records, test_result, view, with_drift
+from study.engine.prune import prune_runs
 from study.engine.tasks import Context, display_of, load_scene
 
 
@@ -231,9 +232,8 @@ class Study:
         figures = self.precision.rule == "figures"
         whole = figures and self.profile.runs_while_refining == "whole"    # else every test's runs are pruned once judged
         free = D.free_bytes(self.cache.root) + S.freeable(self, getattr(self, "_last", None), rnd)   # superseded
-        need = D.needs(rnd.plan)      # the first round of a study that removes what it supersedes: one refinement kept free
-        reserve = D.refining(need) if S.removing(self) and not state.rounds and not state.final else 0
-        pruned = D.fit(need, free, whole, self.cache.root, state.pruned, self.log, reserve)
+        need = D.needs(rnd.plan)
+        pruned = D.fit(need, free, whole, self.cache.root, state.pruned, self.log)
         if figures and pruned != state.pruned:
             return replace(state, pruned=pruned), True          # their metrics prune their runs
         if not figures or state.memo is not None:
@@ -303,7 +303,7 @@ class Study:
         d = decide(now, state.before, levels, self.precision, state.over, state.drifts, rnd.instants)
         # a settled test's runs drop the frames the report does not read; the others stay
         # whole, judged again at the finer bound without being re-made
-        self.planner.prune_runs(lambda k: k not in d.finer)
+        prune_runs(self.planner, lambda k: k not in d.finer)
         state = self._adopt(replace(state, over=d.over, drifts=d.drifts, before=d.before))
         log_judged(self.log, self.precision, d.judged, d.finer, state, rnd, self.bounds_of)
         if not d.finer:
@@ -321,7 +321,7 @@ class Study:
         """Prune every run to its kept frames and record the decisions (each test's bound, under its
         probe references and under the study's inputs) for a later study to replay or start from."""
         self._adopt(state)
-        self.planner.prune_runs(lambda k: True)
+        prune_runs(self.planner, lambda k: True)
         store, memo = Store(self.cache.root), state.memo
         if state.probes is not None:
             P.settle(store, self.precision, state.probes, state.levels)

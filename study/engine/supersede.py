@@ -7,10 +7,12 @@ SSIM/FLIP maps and shown frames) are read by no later round of the study. They a
 the round that replaces them is planned, before it renders: what the previous round's plan read
 (`held`) and this round's does not. Anything this round's plan reads stays: a reference another
 test or instant uses at that bound, a frame a reference chain keeps pixels of (references.reuse:
-the same bound only), the probe's references (the display's). A removed file or folder is first
-renamed to a trash name (one atomic step: a reader finds it whole or missing, never half), then
-deleted. The disk then holds the probe's references and one round's finer ones, not every
-round's (the figures' rounds: docs/scale.md, "Disk").
+the same bound only). The probe's references, which the display transforms come from, go too once
+refined past: each filed its transform (references.cache: `<key>.display.json`, kept), which is
+all a later round reads of it. A removed file or folder is first renamed to a trash name (one
+atomic step: a reader finds it whole or missing, never half), then deleted. The disk then holds
+one round's references, not every round's, nor the probe's beside the finer ones (the figures'
+rounds: docs/scale.md, "Disk").
 
 A killed study must not need them again: before that round starts, the state the precision loop
 carries (`save_progress`) is filed under the study's inputs, and a resumed study starts from it
@@ -57,8 +59,9 @@ def reference_paths(cache, scene, t: int, w: int, h: int, settings: dict, memo: 
 
 def held(study, rnd) -> set[Path]:
     """Every reference file and metrics folder the round's plan reads: its tests' references at each
-    judged instant (their chains too) and the display's, the references its tasks render, the
-    metrics records it judges."""
+    judged instant (their chains too) and the display's where no display record stands for it, the
+    references its tasks render, the metrics records it judges."""
+    from references.cache import display_path, extremes_path
     from study.engine.tasks import load_scene
     cache, out, scenes, memo = study.cache, set(), {}, {}
     scene_of = lambda spec: scenes.setdefault(spec, load_scene(spec))    # noqa: E731
@@ -66,7 +69,9 @@ def held(study, rnd) -> set[Path]:
         scene = scene_of(test.spec)
         for t, s in test.ref_settings_at.items():
             out.update(reference_paths(cache, scene, t, test.width, test.height, s, memo))
-            out.update(reference_paths(cache, scene, t, test.width, test.height, study.display_settings, memo))
+            disp = reference_paths(cache, scene, t, test.width, test.height, study.display_settings, memo)
+            if not display_path(disp[-1]).exists():     # else its transform is read from its record
+                out.update(disp)
         out.update(Path(f) for f in test.metrics_folders.values())
     for task in rnd.plan.tasks.values():
         if task.kind == "reference":
@@ -75,7 +80,8 @@ def held(study, rnd) -> set[Path]:
     for spec, scene in rnd.scenes:       # frame 0's reference at the static test's bound (the report's)
         w, h = study.resolution(scene)
         out.update(reference_paths(cache, scene, 0, w, h, study.settings_for(scene.name), memo))
-    return out
+    refs = cache.root / "references"
+    return out | {extremes_path(p) for p in out if p.parent.parent == refs}     # their extremes, where kept
 
 
 def _held(study, rnd) -> set[Path]:
@@ -144,7 +150,7 @@ def before_round(study, before, now):
     """The round `now` is planned (and the state it starts from filed: `file_progress`): remove what
     `before` read that it does not. Done before `now` renders, not after: no later round of the
     study reads them (a killed study resumes at `now`'s bounds), and the disk then holds one
-    round's references beside the probe's (the display's), not two. Returns `now`."""
+    round's references, not two. Returns `now`."""
     gone = superseded(study, before, now)
     if gone:
         n, freed = remove(gone, study.cache.root)

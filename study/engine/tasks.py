@@ -64,14 +64,14 @@ def display_of(cache, scene, t: int, w: int, h: int, display_settings: dict):
     hairball_rotating_lit at 1600x900 it was 1.0344 at 2 LSB and 1.0352 at 8, either side of
     1.03 / 1.04 to 3 digits, and every figure moved with it. One reference per frame gives one
     transform at every precision and under either rule; a probe is ~6 % of a 0.5-LSB reference's
-    samples."""
-    from display import DisplayTransform
-    return DisplayTransform.from_reference(display_reference(cache, scene, t, w, h, display_settings).image)
+    samples. Read from the reference's display record (references.cache): the probe itself may be
+    gone once the study refined past it (study.engine.supersede)."""
+    return display_reference(cache, scene, t, w, h, display_settings)[1]
 
 
 def display_reference(cache, scene, t: int, w: int, h: int, display_settings: dict):
-    """The reference frame t's display transform comes from (display_of)."""
-    return cache.get(scene, t, w, h, **display_settings)[0]
+    """(key, display transform) of the reference frame t's display transform comes from (display_of)."""
+    return cache.display(scene, t, w, h, **display_settings)
 
 
 @lru_cache(maxsize=64)
