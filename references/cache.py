@@ -94,24 +94,47 @@ class ReferenceCache:
             reuse_since: int = 0, **settings) -> str:
         """The cache key; a frame that reuses frame t - 1's pixels hashes that frame's key, and so
         on back to `reuse_since` (or the last frame that reuses nothing)."""
+        return self.chain(scene, t, width, height, reuse=reuse, reuse_since=reuse_since, **settings)[-1]
+
+    def chain(self, scene: ResolvedScene, t: int, width: int, height: int, *, reuse: bool = False,
+              reuse_since: int = 0, memo: dict | None = None, **settings) -> list[str]:
+        """The keys of the references frame t's is made from, the chain's first frame's to its own
+        (one key where it reuses nothing). `memo`: keys already found, shared by the calls for one
+        chain's instants (each walks back to where an earlier one's chain starts)."""
+        memo = {} if memo is None else memo
         code = code_version()
+        kind = (scene.content_hash, width, height, reuse, reuse_since, repr(sorted(settings.items())))
         first = t
         while reuses(scene, first, width, height, reuse, reuse_since):
+            if ("first", *kind, first - 1) in memo:        # where an earlier instant's chain starts
+                first = memo[("first", *kind, first - 1)]
+                break
             first -= 1
-        key = reference_key(scene, first, width, height, code=code, **settings)
-        for s in range(first + 1, t + 1):
-            key = reference_key(scene, s, width, height, code=code, **settings, reuse_from=key)
-        return key
+        memo[("first", *kind, t)] = first
+        out, key = [], None
+        for s in range(first, t + 1):
+            m = (*kind, s, key)
+            if m not in memo:
+                memo[m] = reference_key(scene, s, width, height, code=code, **settings,
+                                        **({} if key is None else {"reuse_from": key}))
+            key = memo[m]
+            out.append(key)
+        return out
 
     def path(self, scene: ResolvedScene, key: str) -> Path:
         return self.root / "references" / scene.name / f"{key}.exr"
 
-    def settings_key(self, scene: ResolvedScene, t: int, width: int, height: int, *, se_bound_lsb=S.SE_BOUND_LSB,
-                     target_noise_db=S.TARGET_NOISE_DB, spp_per_pass=2, held_out=False, reuse=False,
-                     reuse_since=0) -> str:
-        """The key of the reference `get` returns for these settings (the study's names)."""
-        return self.key(scene, t, width, height, bound_lsb=se_bound_lsb, target=target_noise_db,
-                        spp_per_pass=spp_per_pass, held_out=bool(held_out), reuse=reuse, reuse_since=reuse_since)
+    def settings_key(self, scene: ResolvedScene, t: int, width: int, height: int, **settings) -> str:
+        """The key of the reference `get` returns for these settings (`get`'s names)."""
+        return self.settings_chain(scene, t, width, height, **settings)[-1]
+
+    def settings_chain(self, scene: ResolvedScene, t: int, width: int, height: int, *, se_bound_lsb=S.SE_BOUND_LSB,
+                       target_noise_db=S.TARGET_NOISE_DB, spp_per_pass=2, held_out=False, reuse=False,
+                       reuse_since=0, memo: dict | None = None) -> list[str]:
+        """`chain` for `get`'s settings: the keys of every reference frame t's is made from."""
+        return self.chain(scene, t, width, height, bound_lsb=se_bound_lsb, target=target_noise_db,
+                          spp_per_pass=spp_per_pass, held_out=bool(held_out), reuse=reuse, reuse_since=reuse_since,
+                          memo=memo)
 
     def display(self, scene: ResolvedScene, t: int, width: int, height: int, **settings):
         """(key, display.DisplayTransform) of the reference `get` would return for these settings:

@@ -25,36 +25,14 @@ import shutil
 import uuid
 from pathlib import Path
 
-from references.settings import SE_BOUND_LSB, TARGET_NOISE_DB
 from study.engine.rounds import FigureKey, InstantKey, Over, TestKey
 
 
 def reference_paths(cache, scene, t: int, w: int, h: int, settings: dict, memo: dict | None = None) -> list[Path]:
-    """The files instant t's reference at `settings` reads (ReferenceCache.key's): its own and,
-    where it keeps the previous frame's pixels, each earlier frame's of its chain. `memo`: keys
-    already found (a test's instants share their chains)."""
-    from references.cache import code_version, reference_key, reuses
-    memo = {} if memo is None else memo
-    s = dict(settings)
-    kw = dict(bound_lsb=s.get("se_bound_lsb", SE_BOUND_LSB), target=s.get("target_noise_db", TARGET_NOISE_DB),
-              spp_per_pass=s.get("spp_per_pass", 2), held_out=bool(s.get("held_out", False)))
-    reuse, since, code = s.get("reuse", False), s.get("reuse_since", 0), code_version()
-    first = t
-    while reuses(scene, first, w, h, reuse, since):
-        m = ("first", scene.content_hash, first - 1, w, h, reuse, since)
-        if m in memo:                 # where an earlier instant's chain starts
-            first = memo[m]
-            break
-        first -= 1
-    memo[("first", scene.content_hash, t, w, h, reuse, since)] = first
-    out, key = [], None
-    for u in range(first, t + 1):     # as ReferenceCache.key, each key once
-        m = (scene.content_hash, u, w, h, repr(sorted(kw.items())), key)
-        if m not in memo:
-            memo[m] = reference_key(scene, u, w, h, code=code, **kw, **({} if key is None else {"reuse_from": key}))
-        key = memo[m]
-        out.append(cache.path(scene, key))
-    return out
+    """The files instant t's reference at `settings` reads (references.cache.ReferenceCache.chain):
+    its own and, where it keeps the previous frame's pixels, each earlier frame's of its chain.
+    `memo`: keys already found (a test's instants share their chains)."""
+    return [cache.path(scene, k) for k in cache.settings_chain(scene, t, w, h, **settings, memo=memo)]
 
 
 def held(study, rnd) -> set[Path]:
