@@ -8,6 +8,33 @@ from dataclasses import dataclass
 from . import defaults as D
 
 
+# The figures that have a tolerance (study.metrics.uncertainty.TOLERANCE_OF), so can set a bound.
+EXEMPTABLE = ("mse", "rmsd", "psnr", "snr", "ssim", "ssim_volume", "flip_ldr", "flip_hdr", "relmse_hdr", "temporal")
+
+
+@dataclass(frozen=True)
+class Exemption:
+    """Figures that are printed with their uncertainty but set no test's bound: `figures` of
+    `column` on `tests` of `scenes` (column None: every one; each tuple empty: every one)."""
+    column: str | None = None
+    figures: tuple = ()      # metrics: 'mse', 'psnr', 'ssim', 'flip_ldr', ..., 'temporal'
+    tests: tuple = ()        # protocol names
+    scenes: tuple = ()       # built-in scenes' names, scene files' resolved paths
+
+    def __post_init__(self):
+        for f in ("figures", "tests", "scenes"):
+            object.__setattr__(self, f, tuple(getattr(self, f)))
+
+    def covers(self, scene: str, test: str, column: str, figure: str) -> bool:
+        """Whether this exemption covers `figure` of `column` on `test` of `scene` (a built-in's
+        name or a scene file's path, as a run names it)."""
+        if scene.endswith((".toml", ".json")):
+            from pathlib import Path
+            scene = str(Path(scene).resolve())
+        return (self.column in (None, column) and (not self.figures or figure in self.figures)
+                and (not self.tests or test in self.tests) and (not self.scenes or scene in self.scenes))
+
+
 @dataclass(frozen=True)
 class Precision:
     rule: str = D.PRECISION["rule"]                       # 'figures' | 'per_pixel'
@@ -25,9 +52,26 @@ class Precision:
     # control that nearly is the reference (the thesis's 128-sample accumulation: MSE ~0.05 on pipe
     # at 320x180) would ask for the finest bound on every scene, 16-64x the samples of the rest.
     exempt: tuple = ()
+    # Figures that set no bound where a whole column still does (Exemption): a spatial-only
+    # column's per-frame MSE on a scene made to test temporal stability, say.
+    exemptions: tuple = ()
 
     def __post_init__(self):
         object.__setattr__(self, "exempt", tuple(self.exempt))
+        object.__setattr__(self, "exemptions", tuple(self.exemptions))
+
+    def exempts(self, scene: str, test: str, column: str, figure: str) -> bool:
+        """Whether a figure sets no precision bound: its column is exempt, or an exemption covers it.
+
+        Parameters
+        ----------
+        scene, test : str
+            The scene as the run names it (a built-in's name, a scene file's path) and the test's
+            protocol name.
+        column, figure : str
+            The column's label and the figure's metric ('mse', 'psnr', ..., 'temporal').
+        """
+        return column in self.exempt or any(e.covers(scene, test, column, figure) for e in self.exemptions)
 
     @property
     def tolerances(self) -> dict:

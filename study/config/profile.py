@@ -53,6 +53,36 @@ def thesis_roles(configs) -> dict[str, str]:
 
 
 @dataclass(frozen=True)
+class SceneGroup:
+    """Scenes a study tests on their own terms (a study file's [[scene_groups]]): only `tests`
+    (protocol names; () every one) and, when a run has the study's own columns, only `columns`
+    (their labels; () every one) then its own `techniques` (TechniqueConfigs these scenes alone get).
+    A run given other columns (--techniques, `ab`) tests these scenes with those."""
+    name: str
+    scenes: tuple                         # scene names, or scene files' paths as the study lists them
+    tests: tuple = ()
+    columns: tuple = ()
+    techniques: tuple = ()
+
+    def holds(self, spec: str, name: str) -> bool:
+        """Whether the scene (its spec as the run names it, and its name) is one of the group's."""
+        if spec in self.scenes or name in self.scenes:
+            return True
+        from pathlib import Path
+        return spec.endswith((".toml", ".json")) and str(Path(spec).resolve()) in self.scenes
+
+    def runs(self, protocol: str) -> bool:
+        """Whether the group's scenes get the test of this protocol (by name)."""
+        return not self.tests or protocol in self.tests
+
+    def configs(self, configs, own: bool) -> list:
+        """The columns its scenes' tests get from a run's `configs`; `own`: they are the study's own."""
+        if not own:
+            return list(configs)
+        return [c for c in configs if not self.columns or c.label in self.columns] + list(self.techniques)
+
+
+@dataclass(frozen=True)
 class Profile:
     """A whole study as a study file describes it (study.config.studyfile; the built-in profiles are files)."""
     name: str
@@ -83,6 +113,19 @@ class Profile:
     source: str = ""
     precision: Precision = Precision()    # how precise its references must be (study.engine.precision)
     video: Video = Video()                # the perceptual video metric (study.metrics.video)
+    scene_groups: tuple = ()              # SceneGroups: scenes with their own tests and columns
+
+    def group_of(self, spec: str, name: str) -> SceneGroup | None:
+        """The scene group a scene (its spec, its name) is in, None for none."""
+        return next((g for g in self.scene_groups if g.holds(spec, name)), None)
+
+    def tests_of(self, spec: str, name: str, configs) -> tuple[list, object]:
+        """A scene's columns from a run's `configs`, and whether it gets a protocol's test (a
+        function of the protocol's name): its scene group's (SceneGroup), else every one."""
+        group = self.group_of(spec, name)
+        if group is None:
+            return list(configs), lambda protocol: True
+        return group.configs(configs, own=all(c in self.techniques for c in configs)), group.runs
 
     @property
     def static_views(self) -> dict[str, int]:

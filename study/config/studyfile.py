@@ -45,7 +45,8 @@ such files (study/config/profiles/*.toml).
     start_bound_lsb = 8.0                            # each test's references probed at this per-pixel bound,
     finest_bound_lsb = 0.125                         #   then at what the figures ask for, down to this
     confirm = false                                  # true: a test settled at the probe once more, finer
-    exempt = []                                      # column labels whose figures set no precision
+    exempt = []                                      # column labels whose figures set no precision, or
+                                                     #   {column, figures, tests, scenes}: only those ([]: all)
     [video]                                          # the perceptual video metric (study.metrics.video)
     metric = "cvvdp"                                 # ColorVideoVDP, in JOD; or "none"
     display = "standard_fhd"                         # a cvvdp display model
@@ -54,9 +55,20 @@ such files (study/config/profiles/*.toml).
     scenes = []                                      # [] = every scene of those tests
     techniques = []                                  # column labels or registry names; [] = every column
     device = "auto"                                  # torch's device for it: "cuda" where torch sees one; "cpu"; "cuda"
+    [[scene_groups]]                                 # scenes tested on their own terms
+    name = "hard cases"
+    scenes = ["specular_shimmer", "texture_crawl"]   #   each one of the study's scenes, in one group at most
+    tests = ["ghosting"]                             #   protocol names ("static", the ghosting ones); [] = all
+    columns = ["No AA", "Uncharted"]                 #   labels of [[techniques]]; [] = all
+    [[scene_groups.techniques]]                      #   columns these scenes alone get, after those
+    spec = "Variance clip=taa_variance"
+    [[scene_groups.exempt]]                          #   figures that set no bound on these scenes
+    column = "No AA"
+    figures = ["mse", "psnr"]                        #   [] = all; tests = [...] too
 
 Relative paths (scenes, technique files, out) are relative to the study file. A bad file exits 2
-with the file, the field and the value.
+with the file, the field and the value. A run given other columns than the study's own
+(--techniques, `ab`) tests a scene group's scenes with those, under the group's tests.
 """
 from __future__ import annotations
 
@@ -65,14 +77,15 @@ import tomllib
 from pathlib import Path
 from typing import Any, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import Field, ValidationError, field_validator
 
 from . import defaults as D
 from .lod import MIN_LOD_BIAS
-from .precision import Precision
+from .precision import Exemption, Precision
 from .profile import Profile
 from .protocols import Protocol
-from .techniques import TechniqueConfig, at_scales, lod_bias, upsamples
+from .study_entries import (ExemptEntry, SceneGroupEntry, TechniqueEntry, _Model, check_exempt, columns, resolved,
+                            scene_groups, scene_spec)
 from .video import Video
 
 PROFILE_DIR = Path(__file__).resolve().parent / "profiles"
@@ -80,42 +93,6 @@ PROFILE_DIR = Path(__file__).resolve().parent / "profiles"
 
 class StudyFileError(ValueError):
     pass
-
-
-class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
-
-
-class TechniqueEntry(_Model):
-    label: str | None = None
-    technique: str | None = None
-    params: dict[str, Any] = Field(default_factory=dict)
-    spec: str | None = None
-    render_scale: Union[float, list[float], None] = None     # an upscaler's scales (else the study's)
-    lod_bias: float | None = None          # texture LOD bias of the column (techniques.lod_bias)
-
-    def config(self, base: Path) -> TechniqueConfig:
-        if (self.spec is None) == (self.technique is None):
-            raise ValueError("give either spec = 'Label=name:field=value' or technique = 'name' (with label, params)")
-        if self.spec is not None:
-            if self.label or self.params:
-                raise ValueError("spec already holds the label and parameters")
-            text = self.spec
-        else:
-            text = self.technique
-        if ".py:" in text:
-            head, _, tail = text.rpartition(".py:")
-            lab, eq, path = head.rpartition("=") if "=" in head else ("", "", head)
-            if not Path(path + ".py").is_absolute():
-                path = str(base / (path + ".py"))[:-3]
-            text = f"{lab}{eq}{path}.py:{tail}"
-        c = TechniqueConfig.parse(text)
-        if self.technique is not None:
-            c = TechniqueConfig(self.label or c.label, c.name,
-                                tuple((k, tuple(v) if isinstance(v, list) else v) for k, v in self.params.items()))
-        if self.lod_bias is not None:
-            c = TechniqueConfig(c.label, c.name, c.overrides, float(self.lod_bias))
-        return c
 
 
 class StaticEntry(_Model):
@@ -140,7 +117,7 @@ class PrecisionEntry(_Model):
     start_bound_lsb: float = Field(D.PRECISION["start_bound_lsb"], gt=0, le=64)
     finest_bound_lsb: float = Field(D.PRECISION["finest_bound_lsb"], gt=0)
     confirm: bool = D.PRECISION["confirm"]
-    exempt: list[str] = Field(default_factory=list)
+    exempt: list[Union[str, ExemptEntry]] = Field(default_factory=list)
 
     @field_validator("finest_bound_lsb")
     @classmethod
@@ -198,6 +175,7 @@ class StudyModel(_Model):
     min_lod_bias: float = Field(MIN_LOD_BIAS, le=0)
     sharpen_sweep: list[float] = Field(default_factory=list)
     sharpen_sweep_scenes: list[str] = Field(default_factory=lambda: list(D.SHARPEN_SWEEP_SCENES))
+    scene_groups: list[SceneGroupEntry] = Field(default_factory=list)
 
     @field_validator("sharpen_sweep")
     @classmethod
@@ -253,29 +231,7 @@ def load_study(path: str | Path) -> Profile:
     def fail(field: str, value, msg: str):
         raise StudyFileError(f"{path}: field {field}: {msg} (value: {value!r})")
 
-    configs = []
-    for i, t in enumerate(m.techniques):
-        try:
-            c = t.config(base)
-            c.make()
-            scales = m.render_scale
-            if t.render_scale is not None:
-                if not upsamples(c):
-                    raise ValueError("render_scale is for a technique that upsamples (taa_impl.upscale)")
-                scales = [t.render_scale] if isinstance(t.render_scale, (int, float)) else t.render_scale
-                if not scales or len(set(scales)) != len(scales):
-                    raise ValueError(f"render_scale needs distinct scales, got {t.render_scale!r}")
-            scaled = at_scales(c, scales)
-            for sc in scaled:
-                sc.make()
-        except (ValueError, TypeError, KeyError) as exc:
-            fail(f"techniques[{i}]", t.spec or t.technique, str(exc))
-        for sc in scaled:
-            bias = lod_bias(sc)
-            if bias < m.min_lod_bias:
-                how = "" if sc.lod_bias is not None else f" (the upscalers' rule, study.config.lod, for {sc.label!r})"
-                fail(f"techniques[{i}].lod_bias", bias, f"more negative than min_lod_bias = {m.min_lod_bias:g}{how}")
-        configs.extend(scaled)
+    configs = columns(m.techniques, "techniques", m, base, fail)
     if not configs:     # no techniques (or []): the default set, the built-in profile's
         default = PROFILE_DIR / f"{D.DEFAULT_TECHNIQUES_PROFILE}.toml"
         if path.resolve() == default.resolve():
@@ -306,9 +262,19 @@ def load_study(path: str | Path) -> Profile:
             fail(f"reference.{k}", v, f"unknown reference setting; known: {', '.join(sorted(allowed))}")
     scenes = []
     for i, s in enumerate(m.scenes):
-        if s.endswith((".toml", ".json")) and not Path(s).is_absolute():
-            s = str(base / s)
-        scenes.append(s)
+        scenes.append(scene_spec(s, base))
+    groups, exemptions = scene_groups(m, base, scenes, configs, ("static", *names), fail)
+    labels += [c.label for g in groups for c in g.techniques]
+    for i, e in enumerate(m.precision.exempt):
+        if isinstance(e, str):
+            continue
+        check_exempt(f"precision.exempt[{i}]", e, labels, ("static", *names), fail)
+        for j, sc in enumerate(e.scenes):
+            if scene_spec(sc, base) not in scenes and scenes:
+                fail(f"precision.exempt[{i}].scenes[{j}]", sc, "names no scene of the study's scenes")
+        exemptions.append(Exemption(e.column, e.figures, e.tests, [resolved(scene_spec(sc, base)) for sc in e.scenes]))
+    prec = m.precision.model_dump()
+    prec["exempt"] = [e for e in m.precision.exempt if isinstance(e, str)]
     out = m.out
     if out is not None and not Path(out).is_absolute():
         out = str(base / out)
@@ -320,7 +286,8 @@ def load_study(path: str | Path) -> Profile:
                    thesis_history=st.thesis_history, keep_frames=m.keep_frames, runs_while_refining=m.runs_while_refining,
                    keep_superseded=m.keep_superseded,
                    source=str(path),
-                   precision=Precision(**m.precision.model_dump()), video=Video(**m.video.model_dump()))
+                   precision=Precision(**prec, exemptions=tuple(exemptions)), video=Video(**m.video.model_dump()),
+                   scene_groups=tuple(groups))
 
 
 def profile(name: str) -> Profile:

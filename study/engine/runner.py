@@ -137,15 +137,17 @@ class Study:
                                  checkpoints=(self.profile.thesis_history,))
         for spec, scene in scenes:
             w, h = self.resolution(scene)
+            cols, runs = self.profile.tests_of(spec, scene.name, configs)    # a scene group's own
             # a run keeps, once judged, the frames the report reads (static views, ghosting sliders)
             every = self.profile.keep_frames == "all"
-            statics.append(planner.add_test(spec, scene, self.profile.static, configs, w, h,
-                                             maps=tuple(self.profile.static_views.values()),
-                                             keep="all" if every else "maps"))
+            if runs(st.name):
+                statics.append(planner.add_test(spec, scene, self.profile.static, cols, w, h,
+                                                 maps=tuple(self.profile.static_views.values()),
+                                                 keep="all" if every else "maps"))
             if ghosting and is_animated(scene):
                 skip = self.profile.ghosting_techniques_skip      # registry names or column labels
-                gconf = [c for c in configs if c.name not in skip and c.label not in skip]
-                for p in self.profile.ghosting:
+                gconf = [c for c in cols if c.name not in skip and c.label not in skip]
+                for p in (q for q in self.profile.ghosting if runs(q.name)):
                     ghosts.append(planner.add_test(spec, scene, p, gconf, w, h, maps="none",
                                                    keep="all" if every else "shown"))
             if sweep and scene.name in self.profile.sweep_scenes:

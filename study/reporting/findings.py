@@ -219,7 +219,9 @@ def findings(res, roles: dict, variants: dict, alt: dict | None = None) -> dict:
     claims += _sharpen_claims(views, variants)
     claims.append(_cost_claim(views, roles))
     from study.reporting.sharpen_sweep import factor as sweep_factor
-    factors = [f for f in (sweep_factor(getattr(res, "sharpen_sweeps", [])), rebuilt_scenes(views, roles)) if f]
+    from study.reporting.findings_hard import hard_cases
+    factors = [f for f in (sweep_factor(getattr(res, "sharpen_sweeps", [])), rebuilt_scenes(views, roles),
+                           hard_cases(res, roles)) if f]
     return {"resolutions": res_of, "protocols": list(views), "ghosting_protocols": list(res.ghosts),
             "claims": claims, "factors": factors, "tolerances": res.tolerances}
 

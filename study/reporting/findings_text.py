@@ -71,6 +71,9 @@ def factor_sentence(f: dict) -> str:
     if f["id"] == "sharpen_strength":
         from study.reporting.sharpen_sweep import factor_sentence as sweep
         return sweep(f)
+    if f["id"] == "hard_cases":
+        from study.reporting.findings_hard import sentences
+        return " ".join(sentences(f))
     if f["id"] == "rebuilt_scenes":
         g = f["scene_gap"]
         ex = "; ".join(f"{c} {_num(e['mean'], 2)} dB ({_num(e['min'], 2)} to {_num(e['max'], 2)})"
@@ -84,7 +87,12 @@ def factor_sentence(f: dict) -> str:
 
 
 def summary(record: dict) -> list[str]:
-    return [sentence(c) for c in record["claims"]] + [t for t in map(factor_sentence, record.get("factors", [])) if t]
+    """The findings as sentences: a claim's each, a factor's (the hard cases: one a column)."""
+    from study.reporting.findings_hard import sentences
+    out = [sentence(c) for c in record["claims"]]
+    for f in record.get("factors", []):
+        out += sentences(f) if f["id"] == "hard_cases" else [t for t in [factor_sentence(f)] if t]
+    return out
 
 
 def table(record: dict) -> Table:

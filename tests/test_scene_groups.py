@@ -1,0 +1,130 @@
+"""A study file's scene groups ([[scene_groups]]): scenes tested only under their own protocols with
+their own columns, their figures exempt where the file says so; bad groups exit 2 naming the field."""
+import pytest
+from click.testing import CliRunner
+
+from study.commands.cli import main
+from study.config.precision import EXEMPTABLE, Exemption, Precision
+from study.config.studyfile import load_study, profile
+from study.engine.runner import Study
+
+HARD = ("specular_shimmer", "specular_rail", "texture_crawl", "foliage_sway", "modern_mix")
+
+
+def test_the_figures_an_exemption_names_are_those_with_a_tolerance():
+    from study.metrics.uncertainty import TOLERANCE_OF
+    assert set(EXEMPTABLE) == set(TOLERANCE_OF)
+
+
+def test_an_exemption_covers_its_column_s_figures_on_its_tests_and_scenes_only():
+    p = Precision(exempt=("Accumulation 128",),
+                  exemptions=(Exemption("FXAA", ("mse", "temporal"), ("ghosting",), ("moire", "/s/my.toml")),))
+    assert p.exempts("moire", "ghosting", "FXAA", "temporal")
+    assert p.exempts("/s/./my.toml", "ghosting", "FXAA", "mse")        # a scene file by its resolved path
+    assert not p.exempts("moire", "ghosting", "FXAA", "psnr")
+    assert not p.exempts("moire", "ghosting_warm", "FXAA", "mse")
+    assert not p.exempts("pipe", "ghosting", "FXAA", "mse")
+    assert not p.exempts("moire", "ghosting", "No AA", "mse")
+    assert p.exempts("pipe", "static", "Accumulation 128", "psnr")     # a whole column, as before
+    assert Exemption("FXAA").covers("pipe", "static", "FXAA", "ssim")  # empty lists: every one
+    assert Exemption(None, ("ssim",)).covers("pipe", "static", "Mine", "ssim")     # no column: every one
+    assert not Exemption(None, ("ssim",)).covers("pipe", "static", "Mine", "temporal")
+
+
+def test_the_quick_profile_tests_the_hard_cases_cold_with_the_flicker_columns():
+    p = profile("quick")
+    assert set(HARD) <= set(p.scenes)
+    (g,) = p.scene_groups
+    assert set(g.scenes) == set(HARD) and g.tests == ("ghosting",)
+    labels = [c.label for c in g.configs(p.techniques, own=True)]
+    assert labels[:4] == ["No AA", "FXAA", "Uncharted", "Improved"]
+    assert [c.name for c in g.techniques] == ["taa_tonemap_blend", "taa_variance", "taa_ycocg", "fsr2"]
+    from study.config.techniques import lod_bias
+    import math
+    assert lod_bias(g.techniques[-1]) == pytest.approx(math.log2(0.67) - 1)
+    ex = p.precision
+    # the per-frame figures of every column set no bound there; the temporal RMS does, but FXAA's
+    assert all(ex.exempts(s, "ghosting", c, f) for s in HARD for c in labels for f in ("mse", "psnr", "ssim", "flip_ldr"))
+    assert ex.exempts("modern_mix", "ghosting", "FXAA", "temporal")
+    assert not any(ex.exempts(s, "ghosting", c, "temporal") for s in HARD for c in labels if c != "FXAA")
+    assert not ex.exempts("moire", "ghosting", "FXAA", "temporal")                  # the other scenes as before
+    assert not any(ex.exempts("pipe", t, c.label, f) for t in ("static", "ghosting") for c in p.techniques
+                   if c.label != "Accumulation 128" for f in EXEMPTABLE)
+    # a run given other columns keeps them on the group's scenes too
+    assert g.configs(p.techniques[:2], own=False) == list(p.techniques[:2])
+
+
+def test_the_plan_gives_a_group_s_scenes_only_its_tests_and_columns(tmp_path):
+    p = profile("quick")
+    study = Study(p, cache_root=tmp_path, progress=False)
+    _, _, statics, ghosts, _, _ = study.plan(["sphere_ghosting", "specular_shimmer"], list(p.techniques),
+                                             agreement=False)
+    assert [t.scene for t in statics] == ["sphere_ghosting"]
+    by = {(t.scene, t.protocol.name): [c.label for c in t.configs] for t in ghosts}
+    assert set(by) == {("sphere_ghosting", "ghosting"), ("sphere_ghosting", "ghosting_warm"),
+                       ("specular_shimmer", "ghosting")}
+    assert by[("specular_shimmer", "ghosting")] == [c.label for c in p.scene_groups[0].configs(p.techniques, True)]
+    skip = p.ghosting_techniques_skip
+    assert by[("sphere_ghosting", "ghosting")] == [c.label for c in p.techniques
+                                                   if c.label not in skip and c.name not in skip]
+
+
+def _invoke(args, code=0):
+    r = CliRunner().invoke(main, [str(a) for a in args])
+    assert r.exit_code == code, r.output
+    assert "Traceback" not in r.output
+    return r
+
+
+GROUP = 'name = "x"\nscenes = ["pipe", "moire"]\n[[techniques]]\nspec = "No AA=noaa"\n[[techniques]]\nspec = "FXAA=fxaa"\n'
+
+
+@pytest.mark.parametrize("text, message", [
+    ('[[scene_groups]]\nname = "g"\nscenes = ["atrium"]', "field scene_groups[0].scenes[0]: names no scene of the "
+     "study's scenes (value: 'atrium')"),
+    ('[[scene_groups]]\nname = "g"\nscenes = []', "field scene_groups[0].scenes"),
+    ('[[scene_groups]]\nname = "g"\nscenes = ["moire"]\ntests = ["ghost"]', "field scene_groups[0].tests[0]: names "
+     "no test of the study; known: static, ghosting (value: 'ghost')"),
+    ('[[scene_groups]]\nname = "g"\nscenes = ["moire"]\ncolumns = ["SMAA"]', "field scene_groups[0].columns[0]: "
+     "names no column of the study's [[techniques]] (a label) (value: 'SMAA')"),
+    ('[[scene_groups]]\nname = "g"\nscenes = ["moire"]\n[[scene_groups.techniques]]\nspec = "nosuch"',
+     "field scene_groups[0].techniques[0]: unknown technique 'nosuch'"),
+    ('[[scene_groups]]\nname = "g"\nscenes = ["moire"]\n[[scene_groups.techniques]]\nspec = "FXAA=taa_variance"',
+     "field scene_groups[0].techniques: labels must be unique among the study's columns and the group's "
+     "(value: 'FXAA')"),
+    ('[[scene_groups]]\nname = "g"\nscenes = ["moire"]\n[[scene_groups]]\nname = "h"\nscenes = ["moire"]',
+     "field scene_groups[1].scenes[0]: is in group 'g' too (value: 'moire')"),
+    ('[[scene_groups]]\nname = "g"\nscenes = ["moire"]\n[[scene_groups]]\nname = "g"\nscenes = ["pipe"]',
+     "field scene_groups[1].name: names another group too (value: 'g')"),
+    ('[[scene_groups]]\nname = "g"\nscenes = ["moire"]\ncolumns = ["No AA"]\n[[scene_groups.exempt]]\n'
+     'column = "FXAA"', "field scene_groups[0].exempt[0].column: names no column of the study (its labels) "
+     "(value: 'FXAA')"),
+    ('[[scene_groups]]\nname = "g"\nscenes = ["moire"]\n[[scene_groups.exempt]]\ncolumn = "FXAA"\nfigures = ["mes"]',
+     "field scene_groups[0].exempt[0].figures: unknown figure 'mes'"),
+    ('[[scene_groups]]\nname = "g"\nscenes = ["moire"]\n[[scene_groups.exempt]]\ncolumn = ""',
+     "field scene_groups[0].exempt[0].column"),
+    ('[[scene_groups]]\nname = "g"\nscenes = ["moire"]\ntests = ["ghosting"]\n[[scene_groups.exempt]]\n'
+     'column = "FXAA"\ntests = ["static"]', "field scene_groups[0].exempt[0].tests[0]: names no test of the study; "
+     "known: ghosting (value: 'static')"),
+    ('[precision]\nexempt = ["No AA", {column = "TAA"}]', "field precision.exempt[1].column: names no column"),
+    ('[precision]\nexempt = [{column = "FXAA", scenes = ["atrium"]}]', "field precision.exempt[0].scenes[0]: names "
+     "no scene of the study's scenes (value: 'atrium')"),
+])
+def test_bad_scene_groups_exit_2_naming_the_field_and_value(tmp_path, text, message):
+    f = tmp_path / "bad.toml"
+    f.write_text(GROUP + text)
+    r = _invoke(["run", f], code=2)
+    assert message in r.output and str(f) in r.output
+
+
+def test_a_group_s_exemptions_and_precision_s_tables_reach_the_precision(tmp_path):
+    f = tmp_path / "ok.toml"
+    f.write_text(GROUP + '[[scene_groups]]\nname = "g"\nscenes = ["moire"]\ntests = ["ghosting"]\n'
+                 '[[scene_groups.exempt]]\ncolumn = "FXAA"\nfigures = ["temporal"]\n[[scene_groups.exempt]]\n'
+                 'figures = ["ssim"]\ntests = ["ghosting"]\n'
+                 '[precision]\nexempt = ["No AA", {column = "FXAA", figures = ["ssim"], scenes = ["pipe"]}]\n')
+    p = load_study(f).precision
+    assert p.exempt == ("No AA",)
+    assert p.exemptions == (Exemption("FXAA", ("temporal",), (), ("moire",)),
+                            Exemption(None, ("ssim",), ("ghosting",), ("moire",)),
+                            Exemption("FXAA", ("ssim",), (), ("pipe",)))
