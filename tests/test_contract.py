@@ -137,3 +137,25 @@ def test_the_driver_hands_a_researchers_technique_the_frame_its_contract_asks_fo
         r.close()
     np.testing.assert_array_equal(img, np.repeat(depth[..., None], 3, axis=-1))
     assert dataclasses.asdict(taa_impl.make("noaa").inputs)["buffers"] == {"color"}
+
+
+def test_a_study_column_reads_its_contract_and_key_without_building_the_technique(monkeypatch):
+    """study.config.techniques.TechniqueConfig: the parameters, inputs, class and key data a planner
+    reads of a column (a preset, overrides, a feedback preset, an upscaler's render scale) are the
+    built technique's, with construction refused."""
+    from study.config.techniques import TechniqueConfig
+    cols = [TechniqueConfig.parse(x) for x in (
+        "taa_baseline", "taa_tonemap_blend", "taa_variance:sharpen=none", "Mine=taa_ycocg:k_min=0.5",
+        "taa_baseline:feedback=inside", "fsr2:render_scale=0.5", "upscale_spatial", "fxaa", "accumulation:samples=5",
+        "taa_reject", "taa_sparse")]
+    built = {c.label: (c.make().params, c.make().inputs, type(c.make())) for c in cols}
+    keys = {c.label: c.key_data() for c in cols}
+
+    def refuse(self, *a, **k):
+        raise AssertionError(f"{type(self).__name__} was built to read its contract")
+    monkeypatch.setattr(Technique, "__init__", refuse)
+    for c in cols:
+        assert (c.params(), c.inputs(), c.code()) == built[c.label], c.label
+        assert c.key_data() == keys[c.label], c.label
+    assert TechniqueConfig.parse("fsr2:render_scale=0.5").inputs().render_scale == 0.5
+    assert TechniqueConfig.parse("fxaa").inputs().display

@@ -33,25 +33,41 @@ class TechniqueConfig:
     def make(self):
         return resolve_technique(self.name)(**dict(self.overrides))
 
+    def params(self):
+        """The technique's parameters (its Params) as `make` would build it, without building it."""
+        from taa_impl.base import build_params
+        factory, o = resolve_technique(self.name), dict(self.overrides)
+        params, feedback = o.pop("params", None), o.pop("feedback", None)
+        if params is None:      # a registry preset's defaults, then the column's overrides
+            o = {**getattr(factory, "defaults", {}), **o}
+        return build_params(factory.Params, params, feedback, **o)
+
+    def inputs(self):
+        """What the technique needs (taa_impl.contract.Inputs) for these parameters, read without
+        building it (a planner reads every column's for every test)."""
+        return resolve_technique(self.name).inputs_for(self.params())
+
     def is_default(self, name: str) -> bool:
         """This is registry technique `name` with its default parameters (e.g. the thesis's TAA)."""
         if self.name != name:
             return False
         import taa_impl
-        return self.make().params == taa_impl.make(name).params
+        return self.params() == taa_impl.make(name).params
 
     def key_data(self) -> dict:
         """What identifies this technique's output: registry name, effective parameters, and the
         class whose code (and, transitively, the code it uses) produced it (see provenance)."""
-        tech = self.make()
-        params = dataclasses.asdict(tech.params) if dataclasses.is_dataclass(tech.params) else repr(tech.params)
-        out = {"name": self.name, "params": params, "class": f"{type(tech).__module__}.{type(tech).__qualname__}"}
+        p, cls = self.params(), self.code()
+        params = dataclasses.asdict(p) if dataclasses.is_dataclass(p) else repr(p)
+        out = {"name": self.name, "params": params, "class": f"{cls.__module__}.{cls.__qualname__}"}
         if self.lod_bias is not None:    # the default rule is code the run's key already names (drive)
             out["lod_bias"] = float(self.lod_bias)
         return out
 
     def code(self) -> type:
-        return type(self.make())
+        """The technique's class (a registry preset's), whose code keys its runs."""
+        factory = resolve_technique(self.name)
+        return getattr(factory, "cls", factory)
 
     @classmethod
     def parse(cls, text: str) -> "TechniqueConfig":
@@ -98,7 +114,7 @@ def upsamples(c: TechniqueConfig) -> bool:
 
 
 def render_scale(c: TechniqueConfig) -> float:
-    return float(c.make().inputs.render_scale)
+    return float(c.inputs().render_scale)
 
 
 def at_scales(c: TechniqueConfig, scales) -> list[TechniqueConfig]:
@@ -114,7 +130,7 @@ def lod_bias(c: TechniqueConfig) -> float:
     """The texture LOD bias of a column's raster frames (study.config.lod: its own, else FSR 2's
     rule log2(render / display) - 1 for a temporal upscaler, log2(render / display) for a spatial
     one, 0 for the rest)."""
-    return _lod_bias(c.lod_bias, c.make().inputs)
+    return _lod_bias(c.lod_bias, c.inputs())
 
 
 def family(c: TechniqueConfig) -> str:

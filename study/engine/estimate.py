@@ -61,7 +61,7 @@ def work(plan, cache=None) -> dict[str, SceneWork]:
             frames = set()      # as study.engine.drive.FrameSource memoises them (one per render size,
             biased = has_trilinear(scene)   # and LOD bias where a texture is trilinear)
             for c in s.configs:
-                inp = c.make().inputs
+                inp = c.inputs()
                 sw.configs[c.label] = c
                 steps = schedule if inp.sampling == "sequence" else judged_steps(schedule, inp.sampling)
                 sw.steps[c.label] = sw.steps.get(c.label, 0) + len(steps)

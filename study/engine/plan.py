@@ -207,8 +207,7 @@ class Planner:
         vlabels = {c.label for c in configs if self.video.judges(protocol.kind, scene.name, c)}
         whole = vlabels if protocol.kind == "ghosting" else set()
         for c in configs:
-            tech = c.make()
-            inp = tech.inputs
+            inp = c.inputs()
             seen = (inp.sampling, inp.cameras, tuple(sorted(inp.buffers)))
             if seen not in steps:       # the techniques of a test share a few step lists
                 steps[seen] = _normalized_steps(scene, protocol, schedule, inp, seen)
@@ -217,7 +216,7 @@ class Planner:
             # Display-space techniques see a display transform built from a reference.
             inputs = [disp_keys[t] for t in kept_t] if inp.display else []
             key = task_key("run", {"scene": scene.content_hash, "res": (w, h), "schedule": steps[seen],
-                                   "technique": c.key_data()}, inputs, code=[type(tech), *CODE["run"]])
+                                   "technique": c.key_data()}, inputs, code=[c.code(), *CODE["run"]])
             folder = self.store.folder(protocol.kind, scene.name, key)
             test.run_keys[c.label], test.run_folders[c.label] = key, str(folder)
             frames = sorted(test.frame_times[c.label])
@@ -266,7 +265,7 @@ class Planner:
             run_dep = ()
             if need_run:
                 rdeps = self._refs(spec, scene, w, h, (), kept_t) \
-                    if any(c.make().inputs.display for c in need_run) else ()
+                    if any(c.inputs().display for c in need_run) else ()
                 rkey = task_key("runs", sorted(test.run_keys[c.label] for c in need_run),     # and what it judges
                                 sorted(test.metrics_keys[c.label] for c in streams if c in need_run))
                 feeds = {c.label: [(test.metrics_folders[c.label], test.metrics_keys[c.label])] for c in need_run}

@@ -44,7 +44,7 @@ def run_task(ctx: Context, scene_spec: str, w: int, h: int, protocol, configs: l
         if todo:
             schedule = protocol.schedule(scene)
             displays = {}
-            if any(c.make().inputs.display for c in todo):
+            if any(c.inputs().display for c in todo):
                 from references import ReferenceCache
                 cache = ReferenceCache(Path(ctx.cache_root))
                 for t in sorted({s.t for s in schedule if s.keep}):   # one reference held at a time
@@ -101,7 +101,7 @@ def _judges(store, ctx, scene, w: int, h: int, todo: list, keys: dict, display_s
         of: dict = {}
         for i, it in enumerate(items):
             of.setdefault(made[it["run_key"]].label, []).append(i)
-        spaces = [made[it["run_key"]].make().output_space for it in items]
+        spaces = [made[it["run_key"]].inputs().output_space for it in items]
         out.append((Judge(store, ctx, scene, w, h, items, spaces, group["ref_settings"], display_settings,
                          with_run=True), of))
     return out, judged
