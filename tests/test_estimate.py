@@ -58,6 +58,12 @@ def test_units_of_a_tiny_study_by_hand_and_none_once_it_ran(tmp_path, monkeypatc
     assert mov["subframes"] == 4 * (1 + 4)                   # SSAA 4x: static once, cold ghosting 4
     assert mov["technique_steps"] == (16 + 4 + 20) + (1 + 4) + (1 + 4)
     assert mov["technique_frames_judged"] == (3 + 4 + 4) + (1 + 4) + (1 + 4)
+    # every run is pruned once judged under the per-pixel rule: judged as it is made, none written;
+    # runs kept whole write every judged frame, read back by their metrics task
+    assert mov["technique_frames_written"] == still["technique_frames_written"] == 0
+    whole = tmp_path / "whole.toml"
+    whole.write_text(STUDY.format(scenes=json.dumps(scenes)).replace('sweep = false', 'sweep = false\nkeep_frames = "all"'))
+    assert _estimate(whole)["tiny_moving"]["technique_frames_written"] == mov["technique_frames_judged"]
     # tiny_still is not animated: the static test only
     assert (still["references"], still["raster_frames"], still["subframes"]) == (2, 17, 4)
     assert (still["technique_steps"], still["technique_frames_judged"]) == (16 + 1 + 1, 3 + 1 + 1)

@@ -124,6 +124,7 @@ def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
         row = {"scene": name, "resolution": [sw.width, sw.height], "references": sw.references,
                "raster_frames": sw.raster_frames, "subframes": sum(sw.subframes.values()),
                "technique_steps": sum(sw.steps.values()), "technique_frames_judged": sum(sw.judged.values()),
+               "technique_frames_written": sw.written,
                "agreement_frames": sw.agreement_frames}
         if measure:
             click.echo(f"estimate: measuring {name} at {sw.width}x{sw.height} ...", err=True)

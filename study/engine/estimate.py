@@ -6,7 +6,8 @@ technique-frames (the metrics' unit) and agreement checks. `measure_units` times
 per scene here (a reference of frame 0 through the cache, so a measured reference is not wasted;
 raster and resolve through study.engine.costs; the metrics of one technique-frame, split into its
 per-reference and per-frame parts as study.engine.judge works; writing, hashing and reading back one
-frame), and `estimate` multiplies. It is an extrapolation: a moving scene's references are assumed to cost what its
+frame, for the judged frames a run writes: not those its run task judges as it makes them), and
+`estimate` multiplies. It is an extrapolation: a moving scene's references are assumed to cost what its
 frame 0 costs, and sparse supersampling's extra samples are taken at the share its mask asks for
 on a converged frame.
 """
@@ -29,6 +30,7 @@ class SceneWork:
     steps: dict = field(default_factory=dict)              # label -> process calls
     subframes: dict = field(default_factory=dict)          # label -> supersample sub-frames rendered
     judged: dict = field(default_factory=dict)             # label -> technique-frames judged
+    written: int = 0                                       # of those, written by their run and read back
     reference_reads: int = 0                               # references the metrics tasks read (once each)
     agreement_frames: int = 0                               # raster frames the agreement check averages
     configs: dict = field(default_factory=dict)            # label -> TechniqueConfig
@@ -44,6 +46,9 @@ def work(plan, cache=None) -> dict[str, SceneWork]:
     from study.config.techniques import lod_bias
     from study.engine.tasks import load_scene
     out: dict[str, SceneWork] = {}
+    # metrics judged by their run task as it makes the run (study.engine.run_task): no frame written
+    streamed = {it["key"] for t in plan.tasks.values() if t.kind == "run" for g in (t.spec.judge or [])
+                for it in g["items"]}
     for task in plan.tasks.values():
         s = task.spec
         spec, w, h = s.scene, s.width, s.height
@@ -78,6 +83,7 @@ def work(plan, cache=None) -> dict[str, SceneWork]:
             sw = _get(out, spec, load_scene(spec), w, h)
             for it in s.items:
                 sw.judged[it["label"]] = sw.judged.get(it["label"], 0) + len(it["frame_times"])
+                sw.written += 0 if it["key"] in streamed else len(it["frame_times"])
             sw.reference_reads += len({t for it in s.items for t in it["frame_times"].values()})
     return out
 
@@ -144,7 +150,7 @@ def estimate(sw: SceneWork, units: dict) -> dict:
            + sum(n * units["subframe_s"].get(label, units["raster_s"]) for label, n in sw.subframes.items()),
            "resolve": sum(n * res.get(label, 0.0) for label, n in sw.steps.items()),
            "metrics": sum(sw.judged.values()) * units["metrics_s"] + sw.reference_reads * units["reference_read_s"],
-           "frame_io": sum(sw.judged.values()) * units["frame_io_s"],
+           "frame_io": sw.written * units["frame_io_s"],
            "agreement": sw.agreement_frames * units["raster_s"]}
     out["total"] = sum(out.values())
     return out

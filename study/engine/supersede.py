@@ -94,6 +94,10 @@ def remove(paths, root: Path) -> tuple[int, int]:
         else:
             freed += gone.stat().st_size
             gone.unlink(missing_ok=True)
+    try:
+        trash.rmdir()           # emptied (another study's removal may still be using it)
+    except OSError:
+        pass
     return n, freed
 
 
