@@ -75,5 +75,13 @@ def reference_pool(tmp_path_factory):
 
 
 @pytest.fixture
+def no_plots(monkeypatch):
+    """For a test whose studies read no plot: they draw none (study.reporting.report.PLOTS_ENV;
+    every table, image, map and the HTML report are still written). Drawing the plots was about a
+    third of a tiny study's CPU time; tests/test_html_report.py and the paper's tests draw them."""
+    monkeypatch.setenv("TAA_STUDY_PLOTS", "0")
+
+
+@pytest.fixture
 def rng():
     return np.random.default_rng(1234)

@@ -14,11 +14,13 @@ from study.commands.cli import main
 W, H = 64, 36
 
 
+# flowers' raster frames trace alpha-tested shadow rays (~70 ms a frame here): 64 of them, not
+# 128. Fewer raster samples only lower the agreement (48.0 dB against 52.2 at 128; the floor is 45).
 @pytest.mark.long(seconds=10)
-@pytest.mark.parametrize("name,frame", [("sphere_ghosting", 7), ("text_wall", 0), ("flowers", 0)])
-def test_agreement_targets_on_small_builtin_scenes(name, frame, tmp_path):
+@pytest.mark.parametrize("name,frame,samples", [("sphere_ghosting", 7, 128), ("text_wall", 0, 128), ("flowers", 0, 64)])
+def test_agreement_targets_on_small_builtin_scenes(name, frame, samples, tmp_path):
     scene = get_scene(name)
-    a = check_agreement(scene, W, H, frame=frame, samples=128, cache=ReferenceCache(tmp_path),
+    a = check_agreement(scene, W, H, frame=frame, samples=samples, cache=ReferenceCache(tmp_path),
                         progress=False)
     assert a.agreement_psnr_db >= TARGETS["agreement_psnr_db"]
     assert a.interior_max_abs_err <= TARGETS["interior_max_abs_err"]

@@ -103,11 +103,11 @@ def test_runs_keep_only_the_frames_the_report_reads_and_are_remade_when_judged_a
 
     monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))
     scene = tmp_path / "long.toml"
-    scene.write_text(moving_scene(frames=30, size=(24, 16)))
+    scene.write_text(moving_scene(frames=26, size=(24, 16)))       # more frames than the report shows
     path = tmp_path / "s.toml"
     # no video metric (STUDY has none): it keeps every judged frame of the runs it reads (study.engine.plan)
     assert '[video]\nmetric = "none"' in STUDY
-    path.write_text(STUDY.format(scenes=json.dumps([str(scene)])).replace("frames = 4", "frames = 30"))
+    path.write_text(STUDY.format(scenes=json.dumps([str(scene)])).replace("frames = 4", "frames = 26"))
     configs = [TechniqueConfig.parse(s) for s in ("taa_baseline", "noaa")]
 
     def run():
@@ -129,11 +129,11 @@ def test_runs_keep_only_the_frames_the_report_reads_and_are_remade_when_judged_a
     assert shown(a) == ["shown_0016.png"]                                          # the one view
     cold = first.ghosts["ghosting"][0]
     kept, pruned, a = files(cold, "taa_baseline")
-    show = shown_frames(list(range(30)))
-    assert len(show) == 24 and show[0] == 0 and show[-1] == 29
-    assert kept == [] and len(pruned) == 30 and shown(a) == [f"shown_{f:04d}.png" for f in show]
+    show = shown_frames(list(range(26)))
+    assert len(show) == 24 and show[0] == 0 and show[-1] == 25
+    assert kept == [] and len(pruned) == 26 and shown(a) == [f"shown_{f:04d}.png" for f in show]
     first_cold = cold.per_frame["taa_baseline"]
-    assert len(first_cold) == 30                                                # every frame judged
+    assert len(first_cold) == 26                                                # every frame judged
 
     again = run()                  # nothing to do: the metrics are complete, the pruned runs stay so
     assert again.stats["runs_computed"] == 0 and again.stats["metrics_computed"] == 0
@@ -148,7 +148,8 @@ def test_runs_keep_only_the_frames_the_report_reads_and_are_remade_when_judged_a
     assert files(third.ghosts["ghosting"][0], "taa_baseline")[1] == pruned
 
 
-def test_under_the_figures_rule_a_run_is_made_once_over_every_round_and_pruned_once_settled(tmp_path, reference_pool):
+def test_under_the_figures_rule_a_run_is_made_once_over_every_round_and_pruned_once_settled(tmp_path, reference_pool,
+                                                                                             no_plots):
     """A test going to a finer bound is judged again from its runs kept whole, not re-made (each
     round re-made every pruned run: 7 run tasks here instead of 4); once settled they are pruned."""
     from study_fixtures import run_tiny_study, summary

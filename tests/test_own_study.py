@@ -39,7 +39,7 @@ def own(tmp_path, monkeypatch):
 
 
 @pytest.mark.long(seconds=18)
-def test_readme_study_file_and_own_technique_run(own):
+def test_readme_study_file_and_own_technique_run(own, no_plots):
     _invoke(["run", own / "my_study.toml", "--precision", "per_pixel"])
     out = own / "out" / "my_study"
     summary = json.loads((out / "manifest.json").read_text())["summary"]

@@ -132,7 +132,7 @@ def _figures(tmp_path, rule):
 
 
 @pytest.mark.long(seconds=90)
-def test_figures_rule_matches_per_pixel_references_on_three_scenes(tmp_path):
+def test_figures_rule_matches_per_pixel_references_on_three_scenes(tmp_path, no_plots):
     """At the figures' tolerances every figure lies within its tolerance (plus the 0.5-LSB
     figure's own uncertainty) of the figure judged against 0.5-LSB references, no ranking
     changes, and each test's references end at the bound its figures asked for."""

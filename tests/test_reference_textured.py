@@ -2,6 +2,7 @@
 so thin texel rows and columns are integrated to within a point or two per edge however they fall
 in the pixel, the sets stay independent (the reported error stays honest), and a reference that
 stops at the sample cap says how many samples its worst pixel would take."""
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +18,14 @@ from shading import frame_geometry
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "scenes" / "examples" / "textured"
 LSB = 1 / 255
+
+
+@functools.lru_cache(maxsize=None)
+def _example_reference(name: str, seed: int):
+    """An example scene's frame 0 at 64 x 36 to the 2-LSB bound (the default sample cap): rendered
+    once for the tests of this module that read it (a reference is a pure function of these)."""
+    return render_reference(get_scene(str(EXAMPLES / f"{name}.toml")), 0, 64, 36, se_bound_lsb=2.0,
+                            spp_per_pass=2, seed=seed)
 
 
 def _points(a: int, seed0: int, seed1: int):
@@ -102,6 +111,7 @@ def test_sets_integrate_thin_texel_lines_to_within_two_samples(columns):
             assert np.all(hi.max(1)[inner, 0] == 1) and np.all(lo.min(1)[inner, 0] == 0)
 
 
+@pytest.mark.long(seconds=20)      # with the module's thin-lines references (the file's; scheduling only)
 def test_a_reference_stopped_by_the_cap_says_what_it_would_take():
     """The thin-lines example at 64 x 36 with a 512-sample cap: pixels end over the bound, and the
     reference names the samples its worst pixel would take, more than the cap and more than each
@@ -111,7 +121,7 @@ def test_a_reference_stopped_by_the_cap_says_what_it_would_take():
     assert capped.over_bound > 0 and capped.spp_needed > 512
     worst = capped.spp_map[capped.se_lsb > 2.0 * (1 + 1e-5)]
     assert worst.max() <= 512 < capped.spp_needed
-    full = render_reference(scene, 0, 64, 36, se_bound_lsb=2.0, spp_per_pass=2)
+    full = _example_reference("thin_lines", 0)        # seed 0, the default: the one the test below reads
     assert full.over_bound == 0 and full.spp_needed == 0
 
 
@@ -124,8 +134,7 @@ def test_textured_examples_meet_the_bound_and_their_error_is_honest(name):
     of thin_lines' pixels were beyond 3.5 sigma, up to 15; a shared scramble across replicates
     would report an SE near 0."""
     from display import DisplayTransform
-    scene = get_scene(str(EXAMPLES / f"{name}.toml"))
-    a, b = (render_reference(scene, 0, 64, 36, se_bound_lsb=2.0, spp_per_pass=2, seed=s) for s in (0, 1))
+    a, b = (_example_reference(name, s) for s in (0, 1))
     assert a.over_bound == 0 and b.over_bound == 0 and a.spp_max > 256
     disp = DisplayTransform.from_reference(a.image)
     z = (np.abs(disp.encode(a.image) - disp.encode(b.image))

@@ -92,7 +92,8 @@ metric = "none"
 """
 
 
-def test_a_study_sweeps_the_sharpen_and_its_own_kernels_equal_the_static_columns(tmp_path, monkeypatch):
+@pytest.mark.long(seconds=15)
+def test_a_study_sweeps_the_sharpen_and_its_own_kernels_equal_the_static_columns(tmp_path, monkeypatch, no_plots):
     from study_fixtures import run_cli
     monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))
     out = tmp_path / "out"

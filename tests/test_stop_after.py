@@ -63,7 +63,7 @@ def _computed(output) -> dict:
 
 
 @pytest.mark.long(seconds=30)
-def test_a_stopped_study_resumes_to_an_uninterrupted_one_s_figures_recomputing_nothing(tmp_path, monkeypatch):
+def test_a_stopped_study_resumes_to_an_uninterrupted_one_s_figures_recomputing_nothing(tmp_path, monkeypatch, no_plots):
     (tmp_path / "moving.toml").write_text(MOVING)
     (tmp_path / "still.toml").write_text(STILL)
     (tmp_path / "study.toml").write_text(STUDY)
@@ -94,6 +94,7 @@ def test_a_stopped_study_resumes_to_an_uninterrupted_one_s_figures_recomputing_n
     assert sum(first.values()) >= 1, r.output
     monkeypatch.undo()
     monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache_b"))
+    monkeypatch.setenv("TAA_STUDY_PLOTS", "0")       # undone with the clock (no_plots)
 
     r = _invoke(base + ["--out", out])
     assert r.exit_code == 0, r.output

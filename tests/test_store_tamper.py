@@ -15,7 +15,7 @@ from study_fixtures import run_cli, summary, write_scenes
 
 
 @pytest.fixture
-def study(tmp_path, monkeypatch):
+def study(tmp_path, monkeypatch, no_plots):         # the tampering tests read tables, not plots
     monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))
     moving, still = write_scenes(tmp_path)
     args = ["run", "--scenes", still, "--no-agreement", "--precision", "per_pixel", "--out", tmp_path / "out",

@@ -9,18 +9,48 @@ from study.commands.cli import main
 from study_fixtures import moving_scene
 
 SCENE = moving_scene(frames=5, size=(48, 27), segments=16)
+# The quick profile's protocols, short, for the make-style tests: what they prove (a second run
+# recomputes nothing, a changed column recomputes its runs, an interrupted run is made again, the
+# folder lists what belongs) holds for any length of run; its 256-frame static histories with 16
+# checkpoints and 224-frame warm-ups were most of their runs' time. `ab` keeps the quick profile.
+STUDY = """
+name = "make_style"
+resolution = "quick"
+agreement = false
+sweep = false
+ghosting_skip = []
+[[techniques]]
+spec = "noaa"
+[protocols.static]
+history = 16
+checkpoints = [1, 4, 16]
+thesis_history = 16
+[[protocols.ghosting]]
+name = "ghosting"
+frames = 24
+warmup = 0
+[[protocols.ghosting]]
+name = "ghosting_warm"
+frames = 24
+warmup = 16
+[video]
+metric = "none"
+"""
+# no test here reads a plot: the studies draw none (conftest's no_plots; the report is still written)
+pytestmark = pytest.mark.usefixtures("no_plots")
 
 
 @pytest.fixture
 def env(tmp_path, monkeypatch):
     monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))
     (tmp_path / "tiny.toml").write_text(SCENE)
+    (tmp_path / "study.toml").write_text(STUDY)
     return tmp_path
 
 
 def _run(env, *techs, extra=()):
-    args = ["run", "--scenes", str(env / "tiny.toml"), "--out", str(env / "out"), "--no-agreement",
-            "--precision", "per_pixel"]
+    args = ["run", str(env / "study.toml"), "--scenes", str(env / "tiny.toml"), "--out", str(env / "out"),
+            "--no-agreement", "--precision", "per_pixel"]
     for t in techs:
         args += ["--techniques", t]
     r = CliRunner().invoke(main, args + list(extra), catch_exceptions=False)
@@ -29,10 +59,11 @@ def _run(env, *techs, extra=()):
 
 
 @pytest.mark.long(seconds=22)
-def test_second_run_recomputes_nothing_and_one_changed_parameter_recomputes_one_technique(env):
+def test_second_run_recomputes_nothing_and_one_changed_parameter_recomputes_one_technique(env, reference_pool):
     a = "Uncharted=taa_baseline"
     b = "Improved=taa_improved"
     s1, out1 = _run(env, a, b)
+    reference_pool.keep(env / "cache")          # for the tests below whose subject is not the references
     # static + cold and warm ghosting, two techniques
     assert s1["runs_computed"] == 6 and s1["runs_cached"] == 0
     assert s1["references_rendered"] == 2 * 5      # frame 0 shared by both tests; each with its probe (display_of)
@@ -51,7 +82,8 @@ def test_second_run_recomputes_nothing_and_one_changed_parameter_recomputes_one_
     assert s3["runs_computed"] == 3 and s3["runs_cached"] == 3 and s3["references_rendered"] == 0
 
 
-def test_interrupted_run_folder_is_not_read_back(env):
+def test_interrupted_run_folder_is_not_read_back(env, reference_pool):
+    reference_pool.seed(env / "cache")
     _run(env, "Uncharted=taa_baseline")
     runs = list((env / "cache" / "runs" / "static" / "tiny_moving").iterdir())
     assert len(runs) == 1
@@ -95,11 +127,13 @@ def test_ab_reports_paired_differences_and_gates(env):
     assert r.exit_code == 2 and "METRIC=THRESHOLD" in r.output
 
 
-def test_out_folder_lists_the_report_keeps_the_user_s_files_and_refuses_a_foreign_folder(env):
+def test_out_folder_lists_the_report_keeps_the_user_s_files_and_refuses_a_foreign_folder(env, reference_pool):
+    reference_pool.seed(env / "cache")
     mine = env / "mine"
     (mine / "tables").mkdir(parents=True)
     (mine / "tables" / "notes.md").write_text("my own notes")
-    r = CliRunner().invoke(main, ["run", "--scenes", str(env / "tiny.toml"), "--out", str(mine), "--no-agreement",
+    r = CliRunner().invoke(main, ["run", str(env / "study.toml"), "--scenes", str(env / "tiny.toml"), "--out", str(mine),
+                                  "--no-agreement",
                                   "--precision", "per_pixel",
                                   "--techniques", "No AA=noaa"])
     assert r.exit_code == 2 and "no manifest.json" in r.output and str(mine) in r.output, r.output
@@ -109,6 +143,7 @@ def test_out_folder_lists_the_report_keeps_the_user_s_files_and_refuses_a_foreig
     out = env / "out"
     man = json.loads((out / "manifest.json").read_text())["artefacts"]
     assert "report.html" in man                                   # the manifest lists everything that belongs
+    assert not any(rel.startswith("plots/") for rel in man) and not (out / "plots").exists()   # no_plots
     import hashlib
     assert man["report.html"]["sha256"] == hashlib.sha256((out / "report.html").read_bytes()).hexdigest()
     fxaa = [rel for rel in man if "fxaa" in rel]

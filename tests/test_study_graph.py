@@ -18,6 +18,10 @@ from study_fixtures import numbers, run_cli, summary, write_scenes
 ROOT = Path(__file__).resolve().parent.parent
 BIN = Path(sys.executable).parent
 TECHS = ["--techniques", "taa_baseline", "--techniques", "fxaa", "--techniques", "noaa"]
+# Their studies draw no plot (conftest's no_plots): none is read here, and drawing them was a third
+# of each study process's CPU time. The first study below draws them, the check that they change
+# no table.
+pytestmark = pytest.mark.usefixtures("no_plots")
 
 
 # The quick profile's protocols, short: what these tests prove (the executors agree, a killed
@@ -80,8 +84,10 @@ def _free_port() -> int:
 @pytest.mark.long(seconds=30)
 def test_local_cluster_gives_the_in_process_numbers_and_survives_a_killed_worker(tmp_path, scenes, monkeypatch):
     monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache_a"))
+    monkeypatch.delenv("TAA_STUDY_PLOTS")          # this study draws its plots, the others none
     run_cli(["run", _study_file(scenes), "--scenes", ",".join(scenes), "--no-agreement", "--precision", "per_pixel",
              *TECHS, "--out", tmp_path / "a"])
+    monkeypatch.setenv("TAA_STUDY_PLOTS", "0")
     s_a = summary(tmp_path / "a")
     # 2 statics x 3, cold ghosting x 3, warm ghosting only the TAA: No AA and FXAA have no history,
     # so their warm runs are their cold ones (study.engine.plan.run_steps)
@@ -101,6 +107,11 @@ def test_local_cluster_gives_the_in_process_numbers_and_survives_a_killed_worker
     s_b = summary(tmp_path / "b")
     assert s_b["executor"].startswith("LocalCluster, 2 worker") and s_b["runs_computed"] == s_a["runs_computed"]
     assert numbers(tmp_path / "b") == numbers(tmp_path / "a")
+    # with TAA_STUDY_PLOTS=0 the same tables and report, and no plot made or listed
+    listed = {d: set(json.loads((tmp_path / d / "manifest.json").read_text())["artefacts"]) for d in "ab"}
+    assert {r for r in listed["a"] if r.startswith("plots/")} >= {"plots/overview.png", "plots/speed_error.png"}
+    assert listed["b"] == {r for r in listed["a"] if not r.startswith("plots/")}
+    assert not (tmp_path / "b" / "plots").exists() or not any((tmp_path / "b" / "plots").iterdir())
 
     # A scheduler and two workers; one worker is killed (SIGKILL) once the first run is filed.
     # Its cache starts with the references the in-process study made (content-keyed files): the

@@ -31,7 +31,7 @@ metric = "none"
 
 
 @pytest.mark.long(seconds=15)
-def test_a_study_without_the_video_metric_says_so_in_its_ghosting_table(tmp_path, monkeypatch):
+def test_a_study_without_the_video_metric_says_so_in_its_ghosting_table(tmp_path, monkeypatch, no_plots):
     moving, _ = write_scenes(tmp_path)
     (tmp_path / "s.toml").write_text(STUDY.format(moving=moving))
     monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))

@@ -6,6 +6,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +28,10 @@ from study.reporting.tables import METRIC_LABELS, UNCERTAINTY_NOTE, Table, fmt, 
 from study.reporting.thesis import THESIS_COLUMNS
 
 GHOST_METRICS = list(GHOSTING_FIGURES)
+# TAA_STUDY_PLOTS=0: a study writes every table, image, map and the HTML report but no matplotlib
+# plot. For the test suite's tiny studies that read no plot: drawing them was about a third of
+# such a study's CPU time. Unset (or any other value), every plot is made.
+PLOTS_ENV = "TAA_STUDY_PLOTS"
 
 
 def _state(path: Path) -> list:
@@ -42,6 +47,7 @@ class Report(Summaries, Upscaling, SharpenSweep, Static):
 
     FOLDERS = ("tables", "images", "maps", "plots")
     video_off = False        # the study's [video] metric is "none": its ghosting tables say so (jod_off_note)
+    draw_plots = True        # False: no plots/*.png made nor listed (PLOTS_ENV; the report shows none)
 
     def __init__(self, out: Path, artefacts=None, roles: dict | None = None, display=None):
         """`artefacts`: the engine's reader of frames and maps (study.engine.results.Artefacts).
@@ -84,6 +90,8 @@ class Report(Summaries, Upscaling, SharpenSweep, Static):
         `parallel`: made on a thread of the pool (an image: a frame read, display-encoded and PNG-
         encoded, mostly outside the GIL; 2900 of them were 33 s of a cold report on one core),
         written by `finish` at the latest. Never a plot (matplotlib is not thread-safe)."""
+        if not self.draw_plots and rel.startswith("plots/"):
+            return
         path = self.out / rel
         if callable(data):
             if self._unchanged(rel, inputs):
@@ -331,6 +339,7 @@ def write_study(out: Path, res, configs, summary: dict, start: float) -> None:
     from study.reporting import html_report
     report = Report(out, res.artefacts, thesis_roles(configs), res.display)
     report.video_off = summary.get("video_metric") == "none"
+    report.draw_plots = os.environ.get(PLOTS_ENV) != "0"
     views = res.views
     for vi, results in enumerate(views.values()):
         for r in results:
