@@ -288,12 +288,13 @@ class Study:
 
     def judge_round(self, rnd: Round, state: Progress) -> dict:
         """TestKey -> the figures that bound its precision (FigureKey -> (value, halves'
-        uncertainty)) from the round's results: those a test prints, of columns not exempt."""
+        uncertainty)) from the round's results: those a test prints, of columns and figures not exempt
+        (study.config.precision.Precision.exempts)."""
         results, now = state.rounds[-1][1], {}
         for t in rnd.judged:
             now.setdefault(TestKey(t.scene, t.protocol.name), {}).update(
                 {FigureKey(t.protocol.name, *k): v for k, v in figures_of(self._result(t, results, {})).items()
-                 if k[0] not in self.precision.exempt and P.printed(t.protocol, k[-1])})
+                 if not self.precision.exempts(t.spec, t.protocol.name, k[0], k[-1]) and P.printed(t.protocol, k[-1])})
         return now
 
     def decide_next(self, ask: Request, rnd: Round, state: Progress, now: dict) -> Progress:
