@@ -363,3 +363,38 @@ def test_a_first_report_never_clears_files_that_appeared_meanwhile(tmp_path):
         with pytest.raises(OutFolderError, match="files appeared in the folder while the study ran"):
             folder.write(lambda where: (where / "manifest.json").write_text("{}"))
     assert sorted(p.name for p in out.iterdir()) == ["mine.txt"] and sorted(p.name for p in tmp_path.iterdir()) == ["o"]
+
+
+NAN_AT_SECOND = """import numpy as np
+from taa_impl.baseline import BaselineTAA
+
+
+class NaNOnce(BaselineTAA):
+    calls = 0
+
+    def process(self, frame, **kw):
+        out = np.array(super().process(frame, **kw))
+        NaNOnce.calls += 1
+        if NaNOnce.calls == 2:
+            out[0, 0, 1] = np.nan
+        return out
+"""
+
+
+def test_a_nan_between_judged_frames_is_refused_on_the_frame_that_made_it(tmp_path):
+    """A technique with history is judged at frame 4 only; a NaN it makes at frame 2 would reach
+    every later frame through its history: refused at frame 2, naming the column and its class."""
+    from study.config.protocols import static_schedule
+    from study.config.techniques import TechniqueConfig
+    from study.engine.drive import TechniqueError, run_schedule
+    from study.engine.tasks import load_scene
+    from study_fixtures import write_scenes
+    (tmp_path / "nan_taa.py").write_text(NAN_AT_SECOND)
+    _, still = write_scenes(tmp_path)
+    cfg = TechniqueConfig.parse(f"X={tmp_path / 'nan_taa.py'}:NaNOnce")
+    with pytest.raises(TechniqueError) as e:
+        run_schedule(load_scene(still), 24, 16, static_schedule(0, 4, [4]), [cfg], {}, progress=False,
+                     emit=lambda *a: None)
+    for w in ("technique 'X' produced NaN/Inf in 1 of 1152 values", f"{tmp_path / 'nan_taa.py'}:NaNOnce",
+              "frame 2"):
+        assert w in str(e.value), (w, str(e.value))
