@@ -44,8 +44,8 @@ def test_the_hard_case_scenes_are_those_of_the_modern_library():
 
 
 def test_each_column_s_flicker_and_blur_cost_are_computed_from_the_figures():
-    f = H.hard_cases(_two_scenes(), ROLES)
-    assert f["scenes"] == ["specular_shimmer", "texture_crawl"]      # pipe is no hard case
+    (f,) = H.hard_cases(_two_scenes(), ROLES)
+    assert f["scenes"] == ["specular_shimmer", "texture_crawl"] and f["protocol"] == "ghosting"   # pipe is none
     fx = f["columns"]["FXAA"]["vs_no_aa"]
     # ratios 3/4 and 2.5/2; PSNR (31 - 31) and (20 - 20); FLIP -0.02 and 0
     assert fx["ratio"] == {"mean": pytest.approx((0.75 + 1.25) / 2), "min": pytest.approx(0.75),
@@ -59,9 +59,9 @@ def test_each_column_s_flicker_and_blur_cost_are_computed_from_the_figures():
     assert tm["vs_uncharted"]["flip"]["mean"] == pytest.approx((0.01 + 0.02) / 2)
     assert tm["vs_no_aa"]["psnr"]["mean"] == pytest.approx((1.0 + 1.0) / 2)
     # the reference uncertainty decides "steadier": 0.3 each side makes FXAA's 3.0 against 4.0 a tie
-    fu = H.hard_cases(_two_scenes(u=0.3), ROLES)["columns"]["FXAA"]["vs_no_aa"]
+    fu = H.hard_cases(_two_scenes(u=0.3), ROLES)[0]["columns"]["FXAA"]["vs_no_aa"]
     assert (fu["steadier"], fu["unsteadier"]) == (1, 0)
-    fu = H.hard_cases(_two_scenes(u=0.6), ROLES)["columns"]["FXAA"]["vs_no_aa"]
+    fu = H.hard_cases(_two_scenes(u=0.6), ROLES)[0]["columns"]["FXAA"]["vs_no_aa"]
     assert (fu["steadier"], fu["unsteadier"]) == (0, 0)
 
 
@@ -87,17 +87,30 @@ def test_the_sentences_state_the_figures_and_the_findings_carry_them():
     summary = FT.summary(rec)
     assert all(l in summary for l in lines)
     assert " ".join(lines) == FT.factor_sentence(hard)
+    assert lines[0].startswith("On today's hard cases (2 scenes, 320x180; ghosting: specular_shimmer, texture_crawl)")
+
+
+def test_each_ghosting_protocol_of_the_hard_cases_gets_its_own_record():
+    res = _two_scenes()
+    warm = _two_scenes().ghosts["ghosting"][:1]
+    warm[0].temporal = {**warm[0].temporal, "Uncharted": 1.0}
+    res.ghosts["ghosting_warm"] = warm
+    cold, hot = H.hard_cases(res, ROLES)
+    assert (cold["protocol"], hot["protocol"]) == ("ghosting", "ghosting_warm") and hot["scenes"] == ["specular_shimmer"]
+    assert hot["columns"]["Uncharted"]["vs_no_aa"]["ratio"]["mean"] == pytest.approx(0.25)
+    rec = F.findings(res, ROLES, {})
+    assert [f["protocol"] for f in rec["factors"] if f["id"] == "hard_cases"] == ["ghosting", "ghosting_warm"]
 
 
 def test_no_hard_case_ghosting_test_makes_no_record():
     res = _two_scenes()
     res.ghosts["ghosting"] = res.ghosts["ghosting"][2:]
-    assert H.hard_cases(res, ROLES) is None
+    assert H.hard_cases(res, ROLES) == []
     assert not any(f["id"] == "hard_cases" for f in F.findings(res, ROLES, {})["factors"])
 
 
 def test_a_missing_figure_is_left_out_not_spread():
     res = _two_scenes()
     res.ghosts["ghosting"][0].temporal["FXAA"] = math.nan
-    fx = H.hard_cases(res, ROLES)["columns"]["FXAA"]["vs_no_aa"]
+    fx = H.hard_cases(res, ROLES)[0]["columns"]["FXAA"]["vs_no_aa"]
     assert fx["ratio"] == {"mean": pytest.approx(1.25), "min": pytest.approx(1.25), "max": pytest.approx(1.25), "n": 1}

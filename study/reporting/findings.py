@@ -221,7 +221,7 @@ def findings(res, roles: dict, variants: dict, alt: dict | None = None) -> dict:
     from study.reporting.sharpen_sweep import factor as sweep_factor
     from study.reporting.findings_hard import hard_cases
     factors = [f for f in (sweep_factor(getattr(res, "sharpen_sweeps", [])), rebuilt_scenes(views, roles),
-                           hard_cases(res, roles)) if f]
+                           *hard_cases(res, roles)) if f]
     return {"resolutions": res_of, "protocols": list(views), "ghosting_protocols": list(res.ghosts),
             "claims": claims, "factors": factors, "tolerances": res.tolerances}
 

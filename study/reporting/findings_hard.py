@@ -1,7 +1,8 @@
 """What the study finds on today's hard cases (scenes/library/modern.py: specular shimmer, thin
 glossy rails, alpha-tested foliage, texture crawl): which columns reduce flicker, and at what blur cost.
 
-Per column, from each hard-case scene's first ghosting test (the cold one where a study has it):
+Per ghosting protocol (a cold start measures the history's convergence too; a warm one, steady
+flicker) and per column, from each hard-case scene's test:
 its temporal RMS (Oliveros 2018, §3.9: the RMS of the frame-to-frame differences' error against
 the reference's, which flicker and crawl raise) as a ratio to No AA's, and its mean PSNR and FLIP
 against the reference beside No AA's (a column that steadies the image by blurring it loses PSNR
@@ -66,24 +67,27 @@ def _summary(rows: list) -> dict:
             "unsteadier": sum(r["unsteadier"] for r in rows), "of": len(rows)}
 
 
-def hard_cases(res, roles: dict, scenes=None) -> dict | None:
-    """The hard-case factor record (module docstring) of a study's results, None where it ran no
-    ghosting test of those scenes with a No AA column. `scenes`: their names (default: hard_case_scenes())."""
+def hard_cases(res, roles: dict, scenes=None) -> list[dict]:
+    """The hard-case factor records (module docstring) of a study's results, one a ghosting protocol
+    that tested any of those scenes with a No AA column. `scenes`: their names (default:
+    hard_case_scenes())."""
     scenes = set(hard_case_scenes() if scenes is None else scenes)
-    noaa, base = roles.get("No AA"), roles.get("Uncharted")
-    tests = {}
+    noaa = roles.get("No AA")
+    out = []
     for pname, results in res.ghosts.items():
-        for g in results:
-            if g.scene in scenes and g.scene not in tests and noaa in g.per_frame:
-                tests[g.scene] = (pname, g)
-    if not tests:
-        return None
+        tests = [g for g in results if g.scene in scenes and noaa in g.per_frame]
+        if tests:
+            out.append(_record(pname, sorted(tests, key=lambda g: g.scene), noaa, roles.get("Uncharted")))
+    return out
+
+
+def _record(pname: str, tests: list, noaa: str, base: str | None) -> dict:
     labels = []
-    for _, g in tests.values():
+    for g in tests:
         labels += [l for l in g.per_frame if l not in labels and l != noaa]
     columns = {}
     for label in labels:
-        on = [g for _, g in tests.values() if label in g.per_frame]
+        on = [g for g in tests if label in g.per_frame]
         name, default = _technique(on[0], label)
         col = {"technique": name, "scenes": [g.scene for g in on],
                "vs_no_aa": _summary([_against(g, label, noaa) for g in on]),
@@ -94,11 +98,11 @@ def hard_cases(res, roles: dict, scenes=None) -> dict | None:
             col["preset"] = PRESETS[name]
             col["vs_uncharted"] = _summary([_against(g, label, base) for g in on if base in g.per_frame])
         columns[label] = col
-    mean_u = {m: max((_mean_u(g, l, m) for _, g in tests.values() for l in g.per_frame), default=math.nan)
+    mean_u = {m: max((_mean_u(g, l, m) for g in tests for l in g.per_frame), default=math.nan)
               for m in ("psnr", "flip_ldr")}
-    return {"id": "hard_cases", "name": "today's hard cases", "no_aa": noaa, "uncharted": base, "mean_u": mean_u,
-            "scenes": sorted(tests), "protocols": sorted({p for p, _ in tests.values()}),
-            "resolutions": sorted({f"{g.width}x{g.height}" for _, g in tests.values()}), "columns": columns}
+    return {"id": "hard_cases", "name": "today's hard cases", "protocol": pname, "no_aa": noaa, "uncharted": base,
+            "mean_u": mean_u, "scenes": [g.scene for g in tests],
+            "resolutions": sorted({f"{g.width}x{g.height}" for g in tests}), "columns": columns}
 
 
 def _n(x: dict, key: str = "mean", d: int = 2, sign: bool = True) -> str:
@@ -125,7 +129,7 @@ def _versus(s: dict, other: str) -> str:
 
 def sentences(f: dict) -> list[str]:
     """The hard-case record in words: one lead sentence, then one per column."""
-    where = f"{len(f['scenes'])} scenes, {', '.join(f['resolutions'])}; {', '.join(f['protocols'])}"
+    where = f"{len(f['scenes'])} scenes, {', '.join(f['resolutions'])}; {f['protocol']}"
     out = []
     order = sorted(f["columns"], key=lambda l: f["columns"][l]["vs_no_aa"]["ratio"].get("mean", math.inf))
     steadier = [l for l in order if f["columns"][l]["vs_no_aa"]["steadier"] == f["columns"][l]["vs_no_aa"]["of"]]
