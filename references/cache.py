@@ -14,8 +14,8 @@ the mean of held-out samples (`taa_held_out`, references.estimates: part of the 
 interrupted render leaves nothing; a file that fails to read, lacks its key or holds NaN/Inf is
 reported, removed and rendered again.
 
-With `reuse` (references.reuse), frame t's reference keeps frame t - 1's estimate (at the same
-settings) where no moving object nor its shadow reaches: its key then hashes frame t - 1's key
+With `reuse` (references.reuse; true, or the names of the scenes it is on for), frame t's reference
+keeps frame t - 1's estimate (at the same settings) where no moving object nor its shadow reaches: its key then hashes frame t - 1's key
 (`reuse_from`, itself chained back to frame `reuse_since`, the last frame rendered whole), so no
 reference is ever read for a chain it was not derived from; each pixel's smallest and largest
 sample (`sample_lo.R/G/B`, `sample_hi.R/G/B`: what the next frame's unseen-feature floor reads)
@@ -80,9 +80,15 @@ def reference_key(scene: ResolvedScene, t: int, width: int, height: int, *, code
     return hashlib.sha256(blob.encode()).hexdigest()[:24]
 
 
-def reuses(scene: ResolvedScene, t: int, width: int, height: int, reuse: bool, reuse_since: int) -> bool:
+def reuse_on(name: str, reuse) -> bool:
+    """Whether the setting `reuse` (true, false, or the names of the scenes it is on for) is on for
+    the scene `name`."""
+    return reuse is True or (isinstance(reuse, (list, tuple)) and name in reuse)
+
+
+def reuses(scene: ResolvedScene, t: int, width: int, height: int, reuse, reuse_since: int) -> bool:
     """Whether frame t's reference keeps pixels of frame t - 1's (references.reuse.global_change)."""
-    return bool(reuse) and t > max(int(reuse_since), 0) and global_change(scene, t, width, height) is None
+    return reuse_on(scene.name, reuse) and t > max(int(reuse_since), 0) and global_change(scene, t, width, height) is None
 
 
 class ReferenceCache:
@@ -248,7 +254,7 @@ class ReferenceCache:
                                target_noise_db=target_noise_db, spp_per_pass=spp_per_pass, held_out=bool(held_out),
                                progress=progress, reuse_from=prev)
         ref.key = key
-        self._write(path, ref, scene, t, extremes=bool(reuse))
+        self._write(path, ref, scene, t, extremes=reuse_on(scene.name, reuse))
         if prev is not None:     # its extremes made this frame: read by nothing else
             extremes_path(self.path(scene, prev.key)).unlink(missing_ok=True)
         return ref, False

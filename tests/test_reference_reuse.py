@@ -1,6 +1,7 @@
 """Reference reuse across frames (references.reuse, references.render's `reuse_from`): a still
 camera, one moving sphere and its shadow; the pixels kept from the previous frame are those no
 moving object nor shadow reaches, and they are still estimates of this frame's reference."""
+import json
 import numpy as np
 import pytest
 
@@ -239,3 +240,30 @@ def test_the_study_reads_an_instants_reference_with_the_settings_its_plan_render
     asked.clear()
     s.reference(scene, 500, test.width, test.height, "ghosting")      # judged by no test: rendered whole
     assert "reuse" not in asked[0][1] and "reuse_since" not in asked[0][1]
+
+
+def test_reuse_named_by_scene_is_on_for_those_scenes_only(tmp_path):
+    """`[reference] reuse` as a list of scene names (the thesis profile: sphere_ghosting alone): a
+    scene it names chains its frames; another renders each frame whole and keeps no extremes."""
+    from references.cache import extremes_path, reuse_on
+    assert reuse_on("a", True) and reuse_on("a", ("a", "b")) and not reuse_on("c", ("a", "b"))
+    assert not reuse_on("a", False) and not reuse_on("a", ())
+    scene, cache = probe(), ReferenceCache(tmp_path)
+    on, off = ("reuse_probe",), ("sphere_ghosting",)
+    ref, _ = cache.get(scene, 2, W, H, reuse=on, reuse_since=1, **FAST)
+    assert ref.reused is not None and ref.reused.any()
+    ref, _ = cache.get(scene, 2, W, H, reuse=off, reuse_since=1, **FAST)
+    assert ref.reused is None                    # rendered whole, and its extremes not kept:
+    assert not extremes_path(cache.path(scene, cache.settings_key(scene, 2, W, H, reuse=off, reuse_since=1, **FAST))).exists()
+    assert len(cache.settings_chain(scene, 2, W, H, reuse=off, reuse_since=1, **FAST)) == 1
+
+
+def test_a_study_file_names_only_its_own_scenes_for_reuse(tmp_path):
+    from study_fixtures import run_cli, write_scenes
+    scenes = write_scenes(tmp_path)
+    f = tmp_path / "s.toml"
+    for reuse, words in (('["tiny_movng"]', "reference.reuse[0]"), ('"yes"', "reference.reuse")):
+        f.write_text(f'name = "s"\nscenes = {json.dumps(scenes)}\n[[techniques]]\nspec = "noaa"\n'
+                     f'[reference]\nreuse = {reuse}\n')
+        r = run_cli(["estimate", str(f)], code=2)
+        assert words in r.output and "Traceback" not in r.output, r.output

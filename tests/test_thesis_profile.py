@@ -42,6 +42,8 @@ def test_the_thesis_profile_is_the_thesis_s_study():
     # the swapped kernels and the ground truth are judged in the static test alone (as the thesis did)
     assert set(p.ghosting_techniques_skip) == {*SWAPPED, "Accumulation 128"}
     assert p.agreement
+    # references reuse the previous frame's pixels on sphere_ghosting alone (where it pays)
+    assert dict(p.ref_settings)["reuse"] == ("sphere_ghosting",)
 
 
 def test_estimate_plans_the_thesis_study_and_its_peak_disk(tmp_path, monkeypatch):

@@ -35,6 +35,7 @@ such files (study/config/profiles/*.toml).
     se_bound_lsb = 0.5                               # settings of references.ReferenceCache.get
     target_noise_db = 60.0                           #   (under rule = "per_pixel")
     reuse = true                                     # ghosting frames keep unchanged pixels of the one before
+                                                     #   (or ["sphere_ghosting", ...]: those scenes only)
     [precision]                                      # study.engine.precision
     rule = "figures"                                 # or "per_pixel": every reference at [reference]
     psnr_db = 0.01                                   # each figure's reference uncertainty at most this
@@ -263,6 +264,16 @@ def load_study(path: str | Path) -> Profile:
     scenes = []
     for i, s in enumerate(m.scenes):
         scenes.append(scene_spec(s, base))
+    reuse = m.reference.get("reuse", False)
+    if not isinstance(reuse, bool):     # the names of the scenes it is on for
+        if not (isinstance(reuse, list) and all(isinstance(x, str) for x in reuse)):
+            fail("reference.reuse", reuse, "must be true, false or a list of scene names")
+        from scenes import get_scene
+        names = [get_scene(sc).name for sc in scenes] if scenes else None
+        for j, x in enumerate(reuse):
+            if names is not None and x not in names:
+                fail(f"reference.reuse[{j}]", x, f"names no scene of the study's ({', '.join(names)})")
+        m.reference["reuse"] = tuple(reuse)
     groups, exemptions = scene_groups(m, base, scenes, configs, ("static", *names), fail)
     labels += [c.label for g in groups for c in g.techniques]
     for i, e in enumerate(m.precision.exempt):

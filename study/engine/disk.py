@@ -24,6 +24,7 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
+from references.cache import reuse_on
 from study.engine.tasks import TaskError
 
 # Bytes a pixel takes on disk, measured on real 1600x900 files (scripts/measure_disk.py): a run's
@@ -64,7 +65,7 @@ def needs(plan) -> dict:
     # a reference's sample extremes stay only until the next frame of its chain is made from them
     # (references.cache): each chain's last frame's, and those of the frames being rendered
     chains = {(t.spec.scene, t.spec.width, t.spec.height, repr(sorted(t.spec.settings.items()))): t.spec
-              for t in new if t.spec.settings.get("reuse")}
+              for t in new if reuse_on(t.spec.scene, t.spec.settings.get("reuse"))}
     refs += (len(chains) + IN_FLIGHT) * max([file_bytes("extremes", c.width, c.height) for c in chains.values()] or [0])
     made = {k for t in plan.tasks.values() if t.kind == "run" for k in t.spec.keys.values()}   # runs it makes
     as_png = {it["key"]: it.get("shown_8bit", True) for t in plan.tasks.values() if t.kind == "metrics"
