@@ -12,7 +12,8 @@ SCENE = moving_scene(frames=5, size=(48, 27), segments=16)
 # The quick profile's protocols, short, for the make-style tests: what they prove (a second run
 # recomputes nothing, a changed column recomputes its runs, an interrupted run is made again, the
 # folder lists what belongs) holds for any length of run; its 256-frame static histories with 16
-# checkpoints and 224-frame warm-ups were most of their runs' time. `ab` keeps the quick profile.
+# checkpoints and 224-frame warm-ups were most of their runs' time. `ab` reads the file too, under the
+# quick profile's figures' rule (`run` is given --precision per_pixel).
 STUDY = """
 name = "make_style"
 resolution = "quick"
@@ -35,6 +36,13 @@ frames = 24
 warmup = 16
 [video]
 metric = "none"
+[precision]
+rule = "figures"
+psnr_db = 0.05
+ssim = 5e-4
+flip = 5e-4
+relative = 0.0115
+relmse = 0.05
 """
 # no test here reads a plot: the studies draw none (conftest's no_plots; the report is still written)
 pytestmark = pytest.mark.usefixtures("no_plots")
@@ -102,7 +110,7 @@ def test_bad_technique_is_refused(env):
 
 @pytest.mark.long(seconds=20)
 def test_ab_reports_paired_differences_and_gates(env):
-    base = ["ab", "--scenes", str(env / "tiny.toml"), "--json"]
+    base = ["ab", "--scenes", str(env / "tiny.toml"), "--study", str(env / "study.toml"), "--json"]
     r = CliRunner().invoke(main, base + ["taa_baseline:sharpen=normalised", "taa_baseline:sharpen=xu",
                                          "--max-worse", "psnr=0.0"], catch_exceptions=False)
     out = json.loads(r.stdout)
@@ -120,7 +128,8 @@ def test_ab_reports_paired_differences_and_gates(env):
                                                   "video_computed": 0, "runs_cached": 4}
     # one technique changed: only its runs (A's are cached); its figures may ask for finer
     # references (the figures' precision rule), and the line says how many were rendered
-    r = CliRunner().invoke(main, ["ab", "--scenes", str(env / "tiny.toml"), "taa_baseline:sharpen=xu",
+    r = CliRunner().invoke(main, ["ab", "--scenes", str(env / "tiny.toml"), "--study", str(env / "study.toml"),
+                                  "taa_baseline:sharpen=xu",
                                   "taa_baseline:sharpen=none"], catch_exceptions=False)
     assert "recomputed: 2 runs (2 cached)" in r.output and " references rendered" in r.output, r.output
     r = CliRunner().invoke(main, base + ["taa_baseline", "taa_improved", "--max-worse", "psnr"])
