@@ -13,7 +13,7 @@ from study.reporting import findings_text as FT
 
 ROLES = {"No AA": "No AA", "FXAA": "FXAA", "Uncharted": "Uncharted", "Improved": "Improved"}
 TECH = {"No AA": "noaa", "FXAA": "fxaa", "Uncharted": "taa_baseline", "Improved": "taa_improved",
-        "Tonemap": "taa_tonemap_blend"}
+        "Tonemap": "taa_tonemap_blend", "U none": "taa_baseline"}
 
 
 def ghost(scene, temporal, psnr, flip, u=0.0, frames=(0, 1)):
@@ -22,7 +22,8 @@ def ghost(scene, temporal, psnr, flip, u=0.0, frames=(0, 1)):
     g = Result(scene, "ghosting", list(frames), per, {l: 1.0 for l in psnr}, kind="ghosting", width=320, height=180)
     g.uncertainty = {l: {t: {"psnr": 0.01 * (i + 1), "flip_ldr": 1e-4} for i, t in enumerate(frames)} for l in psnr}
     g.temporal, g.temporal_u = dict(temporal), {l: u for l in temporal}
-    g.artefacts = {l: {"technique": TECH[l], "overrides": []} for l in psnr}
+    g.artefacts = {l: {"technique": TECH[l], "overrides": [["sharpen", "none"]] if l == "U none" else []}
+                   for l in psnr}
     return g
 
 
@@ -34,7 +35,7 @@ def _two_scenes(u=0.0):
               {"No AA": [20.0, 20.0], "FXAA": [20.0, 20.0], "Uncharted": [22.0, 22.0], "Tonemap": [21.0, 21.0]},
               {"No AA": 0.30, "FXAA": 0.30, "Uncharted": 0.25, "Tonemap": 0.27}, u=u)
     pipe = ghost("pipe", {"No AA": 9.0, "FXAA": 9.0, "Uncharted": 9.0, "Tonemap": 9.0},
-                 {l: [1.0, 1.0] for l in TECH}, {l: 0.5 for l in TECH})
+                 {l: [1.0, 1.0] for l in TECH if l != "U none"}, {l: 0.5 for l in TECH if l != "U none"})
     return StudyResults(views={}, ghosts={"ghosting": [a, b, pipe]})
 
 
@@ -100,6 +101,19 @@ def test_each_ghosting_protocol_of_the_hard_cases_gets_its_own_record():
     assert hot["columns"]["Uncharted"]["vs_no_aa"]["ratio"]["mean"] == pytest.approx(0.25)
     rec = F.findings(res, ROLES, {})
     assert [f["protocol"] for f in rec["factors"] if f["id"] == "hard_cases"] == ["ghosting", "ghosting_warm"]
+
+
+def test_the_baseline_with_its_own_parameters_is_judged_against_the_baseline_too():
+    res = _two_scenes()
+    g = res.ghosts["ghosting"][0]
+    l = "U none"
+    g.per_frame[l] = {t: {"psnr": 34.0, "flip_ldr": 0.14} for t in g.frames}
+    g.temporal[l], g.temporal_u[l], g.artefacts[l] = 1.5, 0.0, {"technique": "taa_baseline", "overrides": [["sharpen", "none"]]}
+    c = H.hard_cases(res, ROLES)[0]["columns"][l]
+    assert c["preset"] == "sharpen = none" and c["scenes"] == ["specular_shimmer"]
+    assert c["vs_uncharted"]["ratio"]["mean"] == pytest.approx(0.75) and c["vs_uncharted"]["psnr"]["mean"] == pytest.approx(1.0)
+    line = next(s for s in H.sentences(H.hard_cases(res, ROLES)[0]) if s.startswith(l))
+    assert "; sharpen = none on the baseline TAA: temporal RMS 0.75 times Uncharted's" in line
 
 
 def test_no_hard_case_ghosting_test_makes_no_record():

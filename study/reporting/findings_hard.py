@@ -6,8 +6,8 @@ flicker) and per column, from each hard-case scene's test:
 its temporal RMS (Oliveros 2018, §3.9: the RMS of the frame-to-frame differences' error against
 the reference's, which flicker and crawl raise) as a ratio to No AA's, and its mean PSNR and FLIP
 against the reference beside No AA's (a column that steadies the image by blurring it loses PSNR
-and gains FLIP there); the baseline TAA's presets (its switches on one at a time) against the
-baseline itself too; ColorVideoVDP's JOD where the study ran it. A scene counts as steadier when
+and gains FLIP there); the baseline TAA's variants (a preset's switch on, or its own parameters
+changed: its sharpen off, say) against the baseline itself too; ColorVideoVDP's JOD where the study ran it. A scene counts as steadier when
 the column's temporal RMS plus its reference uncertainty is below the other's minus its own.
 """
 from __future__ import annotations
@@ -35,10 +35,16 @@ def _mean(g, label: str, metric: str) -> float:
     return float(np.mean(xs)) if xs else math.nan
 
 
-def _technique(g, label: str) -> tuple[str | None, bool]:
-    """(registry name, whether with its default parameters) of a column of a TestResult."""
+def _variant(g, label: str) -> str | None:
+    """What a column changes on the baseline TAA (a preset's switch, or its own parameters), None
+    for a column that is no such variant."""
     a = g.artefacts.get(label, {})
-    return a.get("technique"), not a.get("overrides")
+    name, overrides = a.get("technique"), a.get("overrides") or []
+    if name in PRESETS and not overrides:
+        return PRESETS[name]
+    if name == "taa_baseline" and overrides:
+        return ", ".join(f"{k} = {v}" for k, v in overrides)
+    return None
 
 
 def _mean_u(g, label: str, metric: str) -> float:
@@ -88,14 +94,14 @@ def _record(pname: str, tests: list, noaa: str, base: str | None) -> dict:
     columns = {}
     for label in labels:
         on = [g for g in tests if label in g.per_frame]
-        name, default = _technique(on[0], label)
-        col = {"technique": name, "scenes": [g.scene for g in on],
+        col = {"technique": on[0].artefacts.get(label, {}).get("technique"), "scenes": [g.scene for g in on],
                "vs_no_aa": _summary([_against(g, label, noaa) for g in on]),
                "jod": _spread([g.jod.get(label, {}).get("sequence", math.nan) - g.jod.get(noaa, {}).get("sequence",
                                                                                                         math.nan)
                                for g in on])}
-        if name in PRESETS and default and base and label != base:
-            col["preset"] = PRESETS[name]
+        variant = _variant(on[0], label)
+        if variant and base and label != base:
+            col["preset"] = variant
             col["vs_uncharted"] = _summary([_against(g, label, base) for g in on if base in g.per_frame])
         columns[label] = col
     mean_u = {m: max((_mean_u(g, l, m) for g in tests for l in g.per_frame), default=math.nan)
