@@ -30,7 +30,7 @@ def test_bad_values_exit_2_with_a_message(args, message):
     assert message in r.output and "Traceback" not in r.output
 
 
-def test_duplicate_scenes_are_taken_once_with_a_note(tmp_path, monkeypatch):
+def test_duplicate_scenes_are_taken_once_with_a_note(tmp_path, monkeypatch, no_plots):
     monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))
     _, still = write_scenes(tmp_path)
     r = _invoke(["run", "--scenes", f"{still},{still}", "--no-agreement", "--techniques", "noaa",
