@@ -110,10 +110,10 @@ def test_the_baseline_with_its_own_parameters_is_judged_against_the_baseline_too
     g.per_frame[l] = {t: {"psnr": 34.0, "flip_ldr": 0.14} for t in g.frames}
     g.temporal[l], g.temporal_u[l], g.artefacts[l] = 1.5, 0.0, {"technique": "taa_baseline", "overrides": [["sharpen", "none"]]}
     c = H.hard_cases(res, ROLES)[0]["columns"][l]
-    assert c["preset"] == "sharpen = none" and c["scenes"] == ["specular_shimmer"]
+    assert c["preset"] == "the baseline TAA with sharpen = none" and c["scenes"] == ["specular_shimmer"]
     assert c["vs_uncharted"]["ratio"]["mean"] == pytest.approx(0.75) and c["vs_uncharted"]["psnr"]["mean"] == pytest.approx(1.0)
     line = next(s for s in H.sentences(H.hard_cases(res, ROLES)[0]) if s.startswith(l))
-    assert "; sharpen = none on the baseline TAA: temporal RMS 0.75 times Uncharted's" in line
+    assert "; the baseline TAA with sharpen = none: temporal RMS 0.75 times Uncharted's" in line
 
 
 def test_no_hard_case_ghosting_test_makes_no_record():

@@ -41,9 +41,9 @@ def _variant(g, label: str) -> str | None:
     a = g.artefacts.get(label, {})
     name, overrides = a.get("technique"), a.get("overrides") or []
     if name in PRESETS and not overrides:
-        return PRESETS[name]
+        return f"{PRESETS[name]} on the baseline TAA"
     if name == "taa_baseline" and overrides:
-        return ", ".join(f"{k} = {v}" for k, v in overrides)
+        return "the baseline TAA with " + ", ".join(f"{k} = {v}" for k, v in overrides)
     return None
 
 
@@ -148,7 +148,7 @@ def sentences(f: dict) -> list[str]:
         c = f["columns"][label]
         s = f"{label}: {_versus(c['vs_no_aa'], 'No AA')}"
         if "vs_uncharted" in c and c["vs_uncharted"]["of"]:
-            s += f"; {c['preset']} on the baseline TAA: {_versus(c['vs_uncharted'], f['uncharted'])}"
+            s += f"; {c['preset']}: {_versus(c['vs_uncharted'], f['uncharted'])}"
         if c["jod"]:
             s += f"; JOD {_range(c['jod'], 2)} against No AA's"
         out.append(s + ".")
