@@ -110,10 +110,13 @@ def scene_spec(s: str, base: Path) -> str:
 
 
 def resolved(spec: str) -> str:
+    """A scene spec as a scene group and an exemption hold it: a scene file's resolved path."""
     return str(Path(spec).resolve()) if spec.endswith((".toml", ".json")) else spec
 
 
 def check_exempt(field: str, e, labels: list, tests: tuple, fail) -> None:
+    """Fail (`fail(field, value, message)`) where an exemption entry names a column not among
+    `labels` or a test not among `tests`."""
     if e.column is not None and e.column not in labels:
         fail(f"{field}.column", e.column, "names no column of the study (its labels)")
     for j, t in enumerate(e.tests):
