@@ -24,6 +24,7 @@ def study(tmp_path_factory):
     (root / "tiny_still.toml").write_text(STILL)
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("TAA_STUDY_CACHE", str(root / "cache"))
+        mp.setenv("TAA_STUDY_PLOTS", "0")          # the results read its tables and manifest, no plot
         run_cli(["run", "--scenes", root / "tiny_still.toml", "--no-agreement", "--out", root / "out",
                  "--precision", "per_pixel", "--techniques", "No AA=noaa", "--techniques", "Uncharted=taa_baseline"])
     return root / "out"
