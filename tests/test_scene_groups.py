@@ -129,3 +129,24 @@ def test_a_group_s_exemptions_and_precision_s_tables_reach_the_precision(tmp_pat
     assert p.exemptions == (Exemption("FXAA", ("temporal",), (), ("moire",)),
                             Exemption(None, ("ssim",), ("ghosting",), ("moire",)),
                             Exemption("FXAA", ("ssim",), (), ("pipe",)))
+
+
+@pytest.mark.long(seconds=12)
+def test_a_study_whose_scenes_have_no_static_test_ends_with_its_summary(tmp_path, monkeypatch, reference_pool):
+    """Every scene in a group that runs only a ghosting test: no headline table is written, and the
+    run says so and exits 0 (it read tables/headline.md and ended in a traceback)."""
+    import json
+    from study_fixtures import write_scenes
+    monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))
+    reference_pool.seed(tmp_path / "cache")
+    moving, _ = write_scenes(tmp_path)
+    f = tmp_path / "g.toml"
+    f.write_text(f'name = "g"\nscenes = [{json.dumps(moving)}]\nresolution = "quick"\nagreement = false\n'
+                 'sweep = false\n[[techniques]]\nspec = "noaa"\n[protocols.static]\nhistory = 4\ncheckpoints = [4]\n'
+                 'thesis_history = 4\n[[protocols.ghosting]]\nname = "ghosting"\nframes = 3\nwarmup = 0\n'
+                 '[video]\nmetric = "none"\n[precision]\nrule = "per_pixel"\n[reference]\nse_bound_lsb = 8.0\n'
+                 f'[[scene_groups]]\nname = "moving"\nscenes = [{json.dumps(moving)}]\ntests = ["ghosting"]\n')
+    r = _invoke(["run", f, "--out", tmp_path / "out"])
+    reference_pool.keep(tmp_path / "cache")
+    assert "no static test here, so no headline table" in r.output and "runs computed" in r.output
+    assert (tmp_path / "out" / "report.html").exists() and not (tmp_path / "out" / "tables" / "headline.md").exists()

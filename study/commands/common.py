@@ -363,7 +363,11 @@ def run_study(profile, names, configs, out_dir, no_agreement, executor, sweep=Tr
     _write_report(folder, lambda where: write_study(where, res, configs, summary, start))
     from study.engine.store import Store
     Store(study.cache.root).save_hashes()        # the files the report checked
-    click.echo((out / "tables" / "headline.md").read_text())
+    headline = out / "tables" / "headline.md"
+    if headline.exists():       # a study without a static test (a scene group's ghosting alone) has none
+        click.echo(headline.read_text())
+    else:
+        click.echo(f"no static test here, so no headline table: the ghosting tables are in {out / 'tables'}/")
     if (out / "tables" / "reproduction.md").exists():
         click.echo((out / "tables" / "reproduction.md").read_text())
     click.echo(f"runs computed {res.stats['runs_computed']}, cached {res.stats['runs_cached']}; "
