@@ -87,6 +87,9 @@ name = "ghosting"
 frames = 1
 [precision]
 rule = "per_pixel"
+[reference]
+se_bound_lsb = 2.0          # what is checked holds at any reference precision: each sweep point and its
+target_noise_db = 0.0       # static column are one output judged against one reference (0.5 LSB: 3/4 of the time)
 [video]
 metric = "none"
 """
