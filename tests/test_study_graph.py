@@ -24,9 +24,10 @@ TECHS = ["--techniques", "taa_baseline", "--techniques", "fxaa", "--techniques",
 pytestmark = pytest.mark.usefixtures("no_plots")
 
 
-# The quick profile's protocols, short: what these tests prove (the executors agree, a killed
-# worker's task runs again, each key computed once) holds for any length of run, and the quick
-# profile's 256-frame static runs and 224-frame warm-ups were most of their time.
+# The quick profile's protocols, short, and references at 2 LSB: what these tests prove (the
+# executors agree, a killed worker's task runs again, each key computed once) holds for any length
+# of run and any reference precision, and the quick profile's 256-frame static runs and 224-frame
+# warm-ups were most of their time.
 STUDY = """
 name = "graph"
 resolution = "quick"
@@ -49,6 +50,9 @@ frames = 4
 warmup = 16
 [video]
 metric = "none"
+[reference]
+se_bound_lsb = 2.0
+target_noise_db = 0.0
 [precision]
 rule = "per_pixel"
 psnr_db = 0.05
