@@ -12,8 +12,9 @@ SCENE = moving_scene(frames=5, size=(48, 27), segments=16)
 # The quick profile's protocols, short, for the make-style tests: what they prove (a second run
 # recomputes nothing, a changed column recomputes its runs, an interrupted run is made again, the
 # folder lists what belongs) holds for any length of run; its 256-frame static histories with 16
-# checkpoints and 224-frame warm-ups were most of their runs' time. `ab` reads the file too, under the
-# quick profile's figures' rule (`run` is given --precision per_pixel).
+# checkpoints and 224-frame warm-ups were most of their runs' time; `run` (given --precision
+# per_pixel) renders its references at 2 LSB, which none of them depends on. `ab` reads the file
+# too, under the quick profile's figures' rule.
 STUDY = """
 name = "make_style"
 resolution = "quick"
@@ -36,6 +37,9 @@ frames = 24
 warmup = 16
 [video]
 metric = "none"
+[reference]
+se_bound_lsb = 2.0
+target_noise_db = 0.0
 [precision]
 rule = "figures"
 psnr_db = 0.05
@@ -168,7 +172,7 @@ def test_a_truncated_reference_is_remade_counted_and_reported_once(env, capfd):
     from references.exr import read_exr
     _run(env, "No AA=noaa")
     frame0 = [p for p in (env / "cache" / "references").rglob("*.exr")
-              if read_exr(p)[0]["taa_frame"] == 0 and read_exr(p)[0]["taa_bound_lsb"] == 0.5]   # not its probe
+              if read_exr(p)[0]["taa_frame"] == 0 and read_exr(p)[0]["taa_bound_lsb"] == 2.0]   # not its probe
     assert len(frame0) == 1
     frame0[0].write_bytes(frame0[0].read_bytes()[:3000])
     capfd.readouterr()
