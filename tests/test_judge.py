@@ -107,7 +107,9 @@ def test_runs_keep_only_the_frames_the_report_reads_and_are_remade_when_judged_a
     path = tmp_path / "s.toml"
     # no video metric (STUDY has none): it keeps every judged frame of the runs it reads (study.engine.plan)
     assert '[video]\nmetric = "none"' in STUDY
-    path.write_text(STUDY.format(scenes=json.dumps([str(scene)])).replace("frames = 4", "frames = 26"))
+    # references at 2 LSB: which frames a run keeps, and the figures of one re-made, do not depend on them
+    path.write_text(STUDY.format(scenes=json.dumps([str(scene)])).replace("frames = 4", "frames = 26")
+                    + "[reference]\nse_bound_lsb = 2.0\ntarget_noise_db = 0.0\n")
     configs = [TechniqueConfig.parse(s) for s in ("taa_baseline", "noaa")]
 
     def run():
