@@ -2,6 +2,7 @@
 what its findings need to state causes; planned and estimated, nothing rendered."""
 import json
 
+import pytest
 from click.testing import CliRunner
 
 from scenes import get_scene
@@ -46,6 +47,7 @@ def test_the_thesis_profile_is_the_thesis_s_study():
     assert dict(p.ref_settings)["reuse"] == ("sphere_ghosting",)
 
 
+@pytest.mark.long(seconds=15)
 def test_estimate_plans_the_thesis_study_and_its_peak_disk(tmp_path, monkeypatch):
     monkeypatch.setenv("TAA_STUDY_CACHE", str(tmp_path / "cache"))
     r = CliRunner().invoke(main, ["estimate", "--profile", "thesis", "--json"], catch_exceptions=False)
