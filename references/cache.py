@@ -218,10 +218,10 @@ class ReferenceCache:
                 side[f"sample_lo.{c}"], side[f"sample_hi.{c}"] = ref.sample_lo[..., k], ref.sample_hi[..., k]
         if ref.reused is not None:
             chans["reused"] = ref.reused.astype(np.float32)
-        write_display(path, ref.key, ref.image)
         if side:        # first: a reference found has its extremes (a stray one alone is ignored)
             write_exr(extremes_path(path), side, {"taa_key": ref.key}, compression="smallest")
         write_exr(path, chans, header, compression="smallest")   # ZIP or Zstandard (references.exr)
+        write_display(path, ref.key, ref.image)      # last: a record stands for a reference written whole
 
     def has(self, scene: ResolvedScene, t: int, width: int, height: int, *, se_bound_lsb=S.SE_BOUND_LSB,
             target_noise_db=S.TARGET_NOISE_DB, spp_per_pass=2, held_out=False, reuse=False, reuse_since=0) -> bool:

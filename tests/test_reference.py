@@ -97,7 +97,11 @@ def test_cache_reads_back_detects_corruption_and_leaves_no_partial_file(tmp_path
         cache.get(scene, 0, 24, 16, target_noise_db=55)
     names = sorted(p.name for p in path.parent.iterdir())
     assert not any(n.endswith(".part") for n in names)
-    assert len(names) == 2          # the two complete references only
+    # the two complete references only, each with its display record (references.cache)
+    assert [n for n in names if n.endswith(".exr")] == sorted(cache.path(scene, r.key).name for r in (a, d))
+    assert [n for n in names if n.endswith(".display.json")] == sorted(
+        cache.path(scene, r.key).stem + ".display.json" for r in (a, d))
+    assert len(names) == 4
 
 
 def test_cache_key_covers_the_display_code(tmp_path):
