@@ -45,6 +45,11 @@ def test_one_metrics_task_per_test_reads_each_reference_once_and_agrees_with_jud
     assert res.stats["tasks"]["metrics"] == 4               # 2 static tests, cold and warm ghosting
     # where the time went, by task kind: every kind that ran, positive, and no kind that did not
     assert set(res.stats["task_seconds"]) == set(res.stats["tasks"]) and min(res.stats["task_seconds"].values()) > 0
+    # and by scene: the two scenes' shares add up to each kind's total
+    by_scene = res.stats["task_seconds_by_scene"]
+    assert set(by_scene) == {"tiny_moving", "tiny_still"}
+    for kind, total in res.stats["task_seconds"].items():
+        assert sum(k.get(kind, 0.0) for k in by_scene.values()) == pytest.approx(total, abs=0.05)
     assert res.stats["metrics_computed"] == 2 * 3 + 3 + 1   # warm: No AA and FXAA are the cold runs
     # per task each scene time once: static t 0 (x2 scenes), cold t 0..3, warm t 0..3
     assert sorted(reads) == sorted([("tiny_moving", 0), ("tiny_still", 0)] + [("tiny_moving", t) for t in range(4)] * 2)

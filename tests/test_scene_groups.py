@@ -34,8 +34,11 @@ def test_an_exemption_covers_its_column_s_figures_on_its_tests_and_scenes_only()
 def test_the_quick_profile_tests_the_hard_cases_warm_with_the_flicker_columns():
     p = profile("quick")
     assert set(HARD) <= set(p.scenes)
-    (g,) = p.scene_groups
+    g, moving = p.scene_groups
     assert set(g.scenes) == set(HARD) and g.tests == ("ghosting_warm",)
+    # the moving scenes but the sphere: in motion alone, every column
+    assert moving.tests == ("ghosting", "ghosting_warm") and "sphere_ghosting" not in moving.scenes
+    assert moving.configs(p.techniques, own=True) == list(p.techniques)
     labels = [c.label for c in g.configs(p.techniques, own=True)]
     assert labels[:4] == ["No AA", "FXAA", "Uncharted", "Improved"]
     assert [c.name for c in g.techniques] == ["taa_tonemap_blend", "taa_variance", "taa_ycocg", "fsr2"]

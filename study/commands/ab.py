@@ -80,7 +80,7 @@ def compare(a: TechniqueConfig, b: TechniqueConfig, scenes, profile: str = "quic
     # each test at the bound the study settled it at: A's figures there are cached, B's judged once
     out = study.run(list(scenes), [a, b], agreement=False, seeded=True)
     res = ABResult(a.label, b.label, recomputed={k: v for k, v in out.stats.items()
-                                                   if k not in ("tasks", "task_seconds")})
+                                                   if k not in ("tasks", "task_seconds", "task_seconds_by_scene")})
     overall = {m: [] for m in AB_METRICS}
     overall_u = {m: [] for m in AB_METRICS}
     per_scene: dict = {}

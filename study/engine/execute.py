@@ -29,6 +29,7 @@ import sys
 import time
 from collections import Counter
 from dataclasses import dataclass
+from pathlib import Path
 
 from tqdm import tqdm
 
@@ -116,12 +117,16 @@ class _Bar:
         self.kinds = Counter(t.kind for t in plan.tasks.values())
         self.done = Counter()
         self.seconds = Counter()      # task seconds by kind (summed over workers)
+        self.by_scene = Counter()     # (scene, kind) -> task seconds: where a study's time goes
+        self.scene_of = {k: Path(t.spec.scene).stem for k, t in plan.tasks.items()}
         self.bar = tqdm(total=len(plan.tasks), desc="study", unit="task", disable=not progress or not plan.tasks,
                         file=sys.stderr, mininterval=0.5)
 
-    def finished(self, kind: str, seconds: float = 0.0):
+    def finished(self, kind: str, seconds: float = 0.0, key=None):
         self.done[kind] += 1
         self.seconds[kind] += seconds
+        if key in self.scene_of:
+            self.by_scene[self.scene_of[key], kind] += seconds
         self.bar.set_postfix_str(", ".join(f"{k} {self.done[k]}/{n}" for k, n in sorted(self.kinds.items())),
                                  refresh=False)
         self.bar.update(1)
@@ -138,6 +143,7 @@ class Session:
         self.executor, self.log = executor, log
         self._client = self._cluster = None
         self.task_seconds = Counter()     # kind -> task seconds over every round so far
+        self.scene_seconds = Counter()    # (scene, kind) -> task seconds over every round so far
         self.deadline = deadline          # no task starts after it (now()); None: none
         self.not_started = Counter()      # kind -> tasks of the last execute() left for the deadline
 
@@ -212,7 +218,7 @@ class Session:
                 class _Progress(Callback):
                     def _posttask(self, key, result, dsk_, state, worker_id):
                         if not _stopped(result[0]):
-                            bar.finished(plan.tasks[key].kind, result[1])
+                            bar.finished(plan.tasks[key].kind, result[1], key)
 
                 with _Progress():
                     out = dask.get(dsk, keys)
@@ -224,13 +230,14 @@ class Session:
                     r, seconds = fut.result()     # re-raises a task's own exception
                     if not _stopped(r):
                         results[fut.key] = r
-                        bar.finished(plan.tasks[fut.key].kind, seconds)
+                        bar.finished(plan.tasks[fut.key].kind, seconds, fut.key)
                 missing = [k for k in keys if k not in results and not self.deadline]
                 if missing:
                     raise RuntimeError(f"{len(missing)} tasks returned no result")
         finally:
             bar.close()
         self.task_seconds.update(bar.seconds)
+        self.scene_seconds.update(bar.by_scene)
         self.not_started = Counter(plan.tasks[k].kind for k in keys if k not in results)
         return results
 

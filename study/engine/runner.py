@@ -361,7 +361,11 @@ class Study:
             out.precision.setdefault(name, {})[proto] = {"bound_lsb": min(bounds), "rule": self.precision.rule,
                                                          "bounds": {f"{b:g}": n for b, n in sorted(bounds.items())},
                                                          "over": state.over.get((name, proto), []), "rounds": seen}
-        out.stats = {**computed_counts(results), "tasks": counts, "task_seconds": dict(session.task_seconds)}
+        by_scene = {}
+        for (name, kind), sec in sorted(session.scene_seconds.items()):
+            by_scene.setdefault(name, {})[kind] = round(sec, 2)
+        out.stats = {**computed_counts(results), "tasks": counts, "task_seconds": dict(session.task_seconds),
+                     "task_seconds_by_scene": by_scene}
         out.stats["runs_cached"] = max(0, sum(len(t.configs) for t in statics + ghosts + sweeps + sharpens)
                                        - out.stats["runs_computed"])
         costs = self._costs(scenes, statics, results)
