@@ -71,5 +71,15 @@ def test_units_of_a_tiny_study_by_hand_and_none_once_it_ran(tmp_path, monkeypatc
     run_cli(["run", path, "--out", tmp_path / "out", "--precision", "per_pixel"])
     doc = json.loads(run_cli(["estimate", path, "--json"]).output)
     assert doc["tasks"] == {} and doc["scenes"] == []
+    # runs and their figures gone, references kept: their tasks are planned (they read the files)
+    # but not counted as work to do
+    import shutil
+    for d in ("runs", "metrics", "frame-figures"):
+        shutil.rmtree(tmp_path / "cache" / d, ignore_errors=True)
+    doc = json.loads(run_cli(["estimate", path, "--json"]).output)
+    assert doc["tasks"]["reference"] == 2 * 4 + 2 and "reference" not in doc["to_compute"]
+    assert doc["to_compute"]["run"] == doc["tasks"]["run"] > 0 and doc["complete"] >= doc["tasks"]["reference"]
+    line = run_cli(["estimate", path]).output.splitlines()[0]
+    assert line.startswith("units: tasks to compute {") and "'reference'" not in line, line
     scratch = json.loads(run_cli(["estimate", path, "--json", "--from-scratch"]).output)
     assert {r["scene"]: r for r in scratch["scenes"]} == got          # the whole study's work again

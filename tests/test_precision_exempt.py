@@ -16,9 +16,9 @@ def test_the_round_s_bounding_figures_leave_out_exempt_columns_and_figures(tmp_p
                                       Exemption(None, ("mse",), (), ("texture_crawl",))))
     figs = {(c, 3, m): (1.0, 0.1) for c in ("FXAA", "Uncharted", "Accumulation 128") for m in ("mse", "psnr")}
     figs.update({(c, None, "temporal"): (2.0, 0.1) for c in ("FXAA", "Uncharted")})
-    monkeypatch.setattr(R, "figures_of", lambda res: figs)
+    monkeypatch.setattr(R, "figures_of", lambda res, means=False: figs)
     monkeypatch.setattr(R.Study, "_result", lambda self, t, results, memo: None)
-    proto = lambda name: SimpleNamespace(name=name, figures=None)   # noqa: E731
+    proto = lambda name: SimpleNamespace(name=name, figures=None, kind="static")   # noqa: E731
     tests = [SimpleNamespace(scene=sc, spec=sc, protocol=proto(p)) for sc, p in
              (("pipe", "ghosting"), ("pipe", "static"), ("texture_crawl", "ghosting"))]
     now = s.judge_round(SimpleNamespace(judged=tests), rounds.Progress(rounds=((None, {}),)))

@@ -72,3 +72,23 @@ def test_the_device_field_is_checked_with_the_study_file(tmp_path):
     f.write_text('name = "x"\n[video]\ndevice = "cuda"\n')
     assert load_study(f).video.task_data()["device"] == "cuda"
     assert "device" not in load_study(f).video.key_data()        # the same JOD on either: keyed alike
+
+
+def test_the_video_metric_judges_only_the_protocols_named_and_a_bad_name_is_refused(tmp_path):
+    from types import SimpleNamespace
+    from study.config.profile import get_profile
+    from study.config.studyfile import load_study
+    from study.config.video import Video
+    col = SimpleNamespace(label="Improved", name="taa_improved")
+    v = Video(tests=("ghosting",), protocols=("ghosting",))
+    assert v.judges("ghosting", "s", col, "ghosting") and not v.judges("ghosting", "s", col, "ghosting_warm")
+    assert Video(tests=("ghosting",)).judges("ghosting", "s", col, "ghosting_warm")     # none named: every one
+    q = get_profile("quick").video          # the thesis's protocol (cold) alone
+    assert q.protocols == ("ghosting",) and not q.judges("ghosting", "sphere_ghosting", col, "ghosting_warm")
+    f = tmp_path / "bad.toml"
+    f.write_text('name = "x"\n[[protocols.ghosting]]\nname = "cold"\n[video]\nprotocols = ["cold", "warm"]\n')
+    r = run_cli(["run", f], code=2)
+    assert "video.protocols[1]" in r.output and "'warm'" in r.output and "static, cold" in r.output, r.output
+    assert "Traceback" not in r.output
+    f.write_text('name = "x"\n[[protocols.ghosting]]\nname = "cold"\n[video]\nprotocols = ["cold"]\n')
+    assert load_study(f).video.protocols == ("cold",)

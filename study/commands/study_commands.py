@@ -143,14 +143,15 @@ def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
             for k, v in row["seconds"].items():
                 totals[k] = totals.get(k, 0.0) + v
         rows.append(row)
-    doc = {"study": prof.name, "tasks": plan.counts(), "complete": len(plan.cached), "scenes": rows, "disk": disk,
+    doc = {"study": prof.name, "tasks": plan.counts(), "to_compute": plan.to_compute(), "complete": plan.complete(),
+           "scenes": rows, "disk": disk,
            "memory": _memory_need(prof, names)}
     if measure:
         doc["seconds"] = totals
     if as_json:
         click.echo(_strict_json(doc))
         return
-    click.echo(f"{prof.name}: tasks to compute {plan.counts() or 'none'}, {len(plan.cached)} complete")
+    click.echo(f"{prof.name}: tasks to compute {plan.to_compute() or 'none'}, {plan.complete()} complete")
     remake = sum(r["seconds"]["raster"] + r["seconds"]["resolve"] for r in rows) if measure else None
     for line in D.describe(disk, remake):
         click.echo(line)

@@ -53,6 +53,7 @@ such files (study/config/profiles/*.toml).
     display = "standard_fhd"                         # a cvvdp display model
     fps = 60.0                                       # the frame rate a ghosting test is played at
     tests = ["ghosting"]                             # and/or "static" (the static views' image pairs)
+    protocols = []                                   # protocol names of those tests; [] = every one
     scenes = []                                      # [] = every scene of those tests
     techniques = []                                  # column labels or registry names; [] = every column
     device = "auto"                                  # torch's device for it: "cuda" where torch sees one; "cpu"; "cuda"
@@ -134,6 +135,7 @@ class VideoEntry(_Model):
     display: str = D.VIDEO["display"]
     fps: float = Field(D.VIDEO["fps"], gt=0, le=1000)
     tests: list[Literal["ghosting", "static"]] = Field(default_factory=lambda: list(D.VIDEO["tests"]))
+    protocols: list[str] = Field(default_factory=list)
     scenes: list[str] = Field(default_factory=list)
     techniques: list[str] = Field(default_factory=list)
     device: Literal["auto", "cpu", "cuda"] = D.VIDEO["device"]
@@ -269,11 +271,14 @@ def load_study(path: str | Path) -> Profile:
         if not (isinstance(reuse, list) and all(isinstance(x, str) for x in reuse)):
             fail("reference.reuse", reuse, "must be true, false or a list of scene names")
         from scenes import get_scene
-        names = [get_scene(sc).name for sc in scenes] if scenes else None
+        known = [get_scene(sc).name for sc in scenes] if scenes else None
         for j, x in enumerate(reuse):
-            if names is not None and x not in names:
-                fail(f"reference.reuse[{j}]", x, f"names no scene of the study's ({', '.join(names)})")
+            if known is not None and x not in known:
+                fail(f"reference.reuse[{j}]", x, f"names no scene of the study's ({', '.join(known)})")
         m.reference["reuse"] = tuple(reuse)
+    for j, x in enumerate(m.video.protocols):
+        if x not in ("static", *names):
+            fail(f"video.protocols[{j}]", x, f"names no test of the study; known: {', '.join(('static', *names))}")
     groups, exemptions = scene_groups(m, base, scenes, configs, ("static", *names), fail)
     labels += [c.label for g in groups for c in g.techniques]
     for i, e in enumerate(m.precision.exempt):

@@ -28,21 +28,24 @@ class Video:
     display: str = D.VIDEO["display"]            # a cvvdp display model
     fps: float = D.VIDEO["fps"]                  # the frame rate a ghosting test is played at
     tests: tuple = D.VIDEO["tests"]              # 'ghosting' (every ghosting protocol) and/or 'static'
+    protocols: tuple = ()                        # protocol names; () = every protocol of those tests
     scenes: tuple = ()                           # scene names; () = every scene of those tests
     techniques: tuple = ()                       # column labels or registry names; () = every column
     device: str = D.VIDEO["device"]              # torch's: 'auto' (CUDA where torch sees one) | 'cpu' | 'cuda'
 
     def __post_init__(self):
-        for f in ("tests", "scenes", "techniques"):
+        for f in ("tests", "protocols", "scenes", "techniques"):
             object.__setattr__(self, f, tuple(getattr(self, f)))
 
     @property
     def on(self) -> bool:
         return self.metric != "none"
 
-    def judges(self, kind: str, scene: str, config) -> bool:
-        """Whether a test of this kind ('static' | 'ghosting') on this scene judges the column."""
-        return (self.on and kind in self.tests and (not self.scenes or scene in self.scenes)
+    def judges(self, kind: str, scene: str, config, protocol: str | None = None) -> bool:
+        """Whether a test of this kind ('static' | 'ghosting'; its protocol's name `protocol`) on
+        this scene judges the column."""
+        return (self.on and kind in self.tests and (not self.protocols or protocol in self.protocols)
+                and (not self.scenes or scene in self.scenes)
                 and (not self.techniques or config.label in self.techniques or config.name in self.techniques))
 
     def task_data(self) -> dict:

@@ -68,10 +68,23 @@ class Plan:
     cached: dict = field(default_factory=dict)          # key -> result of a complete artefact
 
     def counts(self) -> dict:
+        """Planned tasks by kind, a reference already in the cache too (its task reads it)."""
         out: dict = {}
         for t in self.tasks.values():
             out[t.kind] = out.get(t.kind, 0) + 1
         return out
+
+    def to_compute(self) -> dict:
+        """Planned tasks by kind but those whose file is already in the cache (Task.likely_cached)."""
+        out: dict = {}
+        for t in self.tasks.values():
+            if not t.likely_cached:
+                out[t.kind] = out.get(t.kind, 0) + 1
+        return out
+
+    def complete(self) -> int:
+        """Artefacts already made: the cached results and the references found in the cache."""
+        return len(self.cached) + sum(t.likely_cached for t in self.tasks.values())
 
 
 SHOWN_FRAMES = 24
@@ -204,7 +217,7 @@ class Planner:
         missing, steps = [], {}
         # the columns the video metric judges here; in a ghosting test (in any round) their runs
         # keep every judged frame, the video's
-        vlabels = {c.label for c in configs if self.video.judges(protocol.kind, scene.name, c)}
+        vlabels = {c.label for c in configs if self.video.judges(protocol.kind, scene.name, c, protocol.name)}
         whole = vlabels if protocol.kind == "ghosting" else set()
         for c in configs:
             inp = c.inputs()

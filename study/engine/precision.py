@@ -47,14 +47,25 @@ from study.engine.rounds import FigureKey, InstantKey, Over, TestKey, instant_le
 from study.metrics import uncertainty as U
 
 
-def figures_of(res) -> dict:
+MEAN = "_mean"      # a metric's mean over a sequence's frames: "mse_mean", ...
+
+
+def figures_of(res, means: bool = False) -> dict:
     """(label, frame, metric) -> (value, halves' uncertainty) of every finite figure of a
-    TestResult (the temporal RMS under frame None)."""
+    TestResult (the temporal RMS under frame None). `means` (a ghosting test): each metric's mean
+    over the frames too, under frame None as `metric + MEAN`, its uncertainty pooled over the
+    frames (uncertainty.pooled: the frames' references are independent renders), where every
+    frame has the figure."""
     out = {}
     for l, per in res.per_frame.items():
         for f, figs in per.items():
             us = res.uncertainty.get(l, {}).get(f, {})
             out.update({(l, f, m): (v, us.get(m) or 0.0) for m, v in figs.items() if v is not None and math.isfinite(v)})
+        if means and per:
+            for m in set.intersection(*(set(figs) for figs in per.values())):
+                got = [out.get((l, f, m)) for f in per]
+                if all(g is not None for g in got):
+                    out[(l, None, m + MEAN)] = (math.fsum(v for v, _ in got) / len(got), U.pooled([u for _, u in got]))
         t = res.temporal.get(l)
         if t is not None and math.isfinite(t):
             out[(l, None, "temporal")] = (t, res.temporal_u.get(l) or 0.0)
@@ -62,9 +73,11 @@ def figures_of(res) -> dict:
 
 
 def printed(protocol, metric: str) -> bool:
-    """Whether a test under `protocol` prints `metric` (Protocol.figures; the temporal RMS always):
-    a figure no table prints sets no bound (figures.json still states its uncertainty)."""
-    return protocol.figures is None or metric in protocol.figures or metric == "temporal"
+    """Whether a test under `protocol` prints `metric` (Protocol.figures; the temporal RMS always; a
+    mean over frames where the frames' figure is): a figure no table prints sets no bound
+    (figures.json still states its uncertainty)."""
+    m = metric.removesuffix(MEAN)
+    return protocol.figures is None or m in protocol.figures or m == "temporal"
 
 
 def over_tolerance(figures: dict, tolerances: dict) -> list[Over]:

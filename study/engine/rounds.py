@@ -131,7 +131,8 @@ def log_judged(log, precision, judged, finer: dict, progress: Progress, rnd: Rou
             continue
         w = over[k][0]
         log(f"precision: {name}: {len(over[k])} figures over their tolerance at {b} LSB, the worst "
-            f"{w.metric} of {w.label} ({w.protocol}, frame {w.frame}) +-{w.uncertainty:.3g} > {w.tolerance:.3g}; "
+            f"{w.metric} of {w.label} ({w.protocol}, {'every frame' if w.frame is None else f'frame {w.frame}'}) "
+            f"+-{w.uncertainty:.3g} > {w.tolerance:.3g}; "
             + (nxt if k in finer else "the finest bound: reported"))
 
 

@@ -268,8 +268,9 @@ class Study:
         plan, rounds = rnd.plan, list(state.rounds)
         counts = plan.counts()
         if plan.tasks:
-            self.log(f"study: {len(plan.tasks)} tasks to compute ({', '.join(f'{k} {n}' for k, n in sorted(counts.items()))})"
-                     f", {len(plan.cached)} complete; executor: {self.executor.describe()}")
+            todo = plan.to_compute()
+            self.log(f"study: {sum(todo.values())} tasks to compute ({', '.join(f'{k} {n}' for k, n in sorted(todo.items()))})"
+                     f", {plan.complete()} complete; executor: {self.executor.describe()}")
         t0, spent = time.perf_counter(), Counter(session.task_seconds)
         if plan.tasks and session.past_deadline():
             stop(rounds, {}, Counter(t.kind for t in plan.tasks.values()))
@@ -293,7 +294,8 @@ class Study:
         results, now = state.rounds[-1][1], {}
         for t in rnd.judged:
             now.setdefault(TestKey(t.scene, t.protocol.name), {}).update(
-                {FigureKey(t.protocol.name, *k): v for k, v in figures_of(self._result(t, results, {})).items()
+                {FigureKey(t.protocol.name, *k): v
+                 for k, v in figures_of(self._result(t, results, {}), means=t.protocol.kind == "ghosting").items()
                  if not self.precision.exempts(t.spec, t.protocol.name, k[0], k[-1]) and P.printed(t.protocol, k[-1])})
         return now
 

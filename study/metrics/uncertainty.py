@@ -125,7 +125,7 @@ def tolerance(metric: str, value: float | None, tolerances: dict) -> float | Non
     float or None
         None for a metric without a tolerance, or a relative one on a missing or infinite value.
     """
-    key = TOLERANCE_OF.get(metric)
+    key = TOLERANCE_OF.get(metric.removesuffix("_mean"))     # a mean over frames: its metric's
     if key is None or key not in tolerances:
         return None
     if key in ("relative", "relmse"):
