@@ -160,3 +160,16 @@ def test_a_study_whose_scenes_have_no_static_test_ends_with_its_summary(tmp_path
     reference_pool.keep(tmp_path / "cache")
     assert "no static test here, so no headline table" in r.output and "runs computed" in r.output
     assert (tmp_path / "out" / "report.html").exists() and not (tmp_path / "out" / "tables" / "headline.md").exists()
+
+
+def test_a_group_s_tests_are_checked_against_the_protocols_with_reuse_on_some_scenes(tmp_path):
+    """reference.reuse's list of scenes once replaced the protocol names a group's tests are checked
+    against: a valid group was refused, and a group naming a scene as its test accepted."""
+    f = tmp_path / "s.toml"
+    body = ('name = "x"\nscenes = ["pipe", "sphere_ghosting"]\n[reference]\nreuse = ["sphere_ghosting"]\n'
+            '[[techniques]]\nspec = "noaa"\n[[scene_groups]]\nname = "g"\nscenes = ["sphere_ghosting"]\n')
+    f.write_text(body + 'tests = ["ghosting"]\n')
+    assert load_study(f).scene_groups[0].tests == ("ghosting",)
+    f.write_text(body + 'tests = ["sphere_ghosting"]\n')
+    r = _invoke(["estimate", f], code=2)
+    assert "scene_groups[0].tests[0]" in r.output and "'sphere_ghosting'" in r.output
