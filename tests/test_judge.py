@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from study.metrics import uncertainty as U
-from study_fixtures import write_scenes
+from study_fixtures import quick_every_frame, write_scenes
 from test_estimate import STUDY
 
 
@@ -159,6 +159,7 @@ def test_under_the_figures_rule_a_run_is_made_once_over_every_round_and_pruned_o
                                                                                              no_plots):
     """A test going to a finer bound is judged again from its runs kept whole, not re-made (each
     round re-made every pruned run: 7 run tasks here instead of 4); once settled they are pruned."""
+    from study.config.profile import get_profile
     from study_fixtures import run_tiny_study, summary
     reference_pool.seed(tmp_path / "cache")       # references an earlier test rendered: cache hits
     s = summary(run_tiny_study(tmp_path, "taa_baseline", "noaa", precision="figures"))
@@ -170,7 +171,7 @@ def test_under_the_figures_rule_a_run_is_made_once_over_every_round_and_pruned_o
         rec = json.loads(done.read_text())
         names = {n for n in rec["files"] if n.startswith("frame_")}
         # the TAA keeps the frames of its static views, No AA its one frame
-        assert len(names) <= 2 and len(rec.get("pruned", [])) in (0, 14), (done, names)
+        assert len(names) <= 2 and len(rec.get("pruned", [])) in (0, len(get_profile("quick").static.checkpoints) - 2)
         assert all((done.parent / n).exists() for n in names)
         assert not any((done.parent / n).exists() for n in rec.get("pruned", []))
 
@@ -196,7 +197,7 @@ def test_a_test_judged_again_takes_the_figures_of_frames_whose_references_did_no
     def study(cache):
         calls.clear()
         logs.clear()
-        s = Study(get_profile("quick"), cache_root=tmp_path / cache, progress=False, log=logs.append)
+        s = Study(quick_every_frame(), cache_root=tmp_path / cache, progress=False, log=logs.append)
         res = s.run(scenes, configs, agreement=False)
         figs = {(t.scene, t.test): (t.per_frame, t.uncertainty, t.temporal, t.temporal_u)
                 for t in res.statics + [g for gs in res.ghosts.values() for g in gs]}

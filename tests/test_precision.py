@@ -506,8 +506,7 @@ def test_a_settled_test_s_agreement_runs_while_other_tests_still_refine(tmp_path
     the other tests still refine in. A ghosting test is settled only once no ghosting protocol of
     its scene is refined (they share the instants' references). The same figures as waiting for the
     last round."""
-    from study_fixtures import write_scenes
-    from study.config.profile import get_profile
+    from study_fixtures import quick_every_frame, write_scenes
     from study.config.techniques import TechniqueConfig
     from study.engine.runner import Study
     scenes = write_scenes(tmp_path)
@@ -525,11 +524,7 @@ def test_a_settled_test_s_agreement_runs_while_other_tests_still_refine(tmp_path
             finals[-1] = (finals[-1], sorted(t.kind for t in out[0].tasks.values()))
             return out
         monkeypatch.setattr(Study, "plan", plan)
-        # each frame's figures bounding the ghosting tests (the quick profile's means alone settle
-        # them in the first round, leaving no test to refine beside a settled one's agreement)
-        from dataclasses import replace
-        q = get_profile("quick")
-        s = Study(replace(q, precision=replace(q.precision, exemptions=())), cache_root=tmp_path / cache, progress=False)
+        s = Study(quick_every_frame(), cache_root=tmp_path / cache, progress=False)
         res = s.run(scenes, configs, agreement=True)
         return res, list(finals)
     reference_pool.seed(tmp_path / "early")

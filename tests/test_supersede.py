@@ -8,7 +8,7 @@ from dataclasses import replace
 import pytest
 
 from references.exr import read_exr
-from study_fixtures import write_scenes
+from study_fixtures import quick_every_frame, write_scenes
 
 
 def _study(root, keep: bool):
@@ -16,7 +16,7 @@ def _study(root, keep: bool):
     from study.config.techniques import TechniqueConfig
     from study.engine.runner import Study
     logs = []
-    s = Study(replace(get_profile("quick"), keep_superseded=keep), cache_root=root, progress=False, log=logs.append)
+    s = Study(replace(quick_every_frame(), keep_superseded=keep), cache_root=root, progress=False, log=logs.append)
     return s, [TechniqueConfig.parse("taa_baseline")], logs
 
 

@@ -118,7 +118,7 @@ class _Bar:
         self.done = Counter()
         self.seconds = Counter()      # task seconds by kind (summed over workers)
         self.by_scene = Counter()     # (scene, kind) -> task seconds: where a study's time goes
-        self.scene_of = {k: Path(t.spec.scene).stem for k, t in plan.tasks.items()}
+        self.scene_of = {k: Path(t.spec.scene).stem for k, t in plan.tasks.items() if getattr(t.spec, "scene", None)}
         self.bar = tqdm(total=len(plan.tasks), desc="study", unit="task", disable=not progress or not plan.tasks,
                         file=sys.stderr, mininterval=0.5)
 
@@ -146,6 +146,13 @@ class Session:
         self.scene_seconds = Counter()    # (scene, kind) -> task seconds over every round so far
         self.deadline = deadline          # no task starts after it (now()); None: none
         self.not_started = Counter()      # kind -> tasks of the last execute() left for the deadline
+
+    def seconds_by_scene(self) -> dict:
+        """scene -> task kind -> task seconds over every round so far (a scene file's by its stem)."""
+        out: dict = {}
+        for (name, kind), sec in sorted(self.scene_seconds.items()):
+            out.setdefault(name, {})[kind] = round(sec, 2)
+        return out
 
     def past_deadline(self) -> bool:
         """Whether the session's deadline has passed (no new task would start)."""

@@ -292,10 +292,10 @@ class Study:
         uncertainty)) from the round's results: those a test prints, of columns and figures not exempt
         (study.config.precision.Precision.exempts)."""
         results, now = state.rounds[-1][1], {}
-        for t in rnd.judged:
+        for t in rnd.judged:       # a ghosting test: its means over frames too
+            figs = figures_of(self._result(t, results, {}), means=t.protocol.kind == "ghosting")
             now.setdefault(TestKey(t.scene, t.protocol.name), {}).update(
-                {FigureKey(t.protocol.name, *k): v
-                 for k, v in figures_of(self._result(t, results, {}), means=t.protocol.kind == "ghosting").items()
+                {FigureKey(t.protocol.name, *k): v for k, v in figs.items()
                  if not self.precision.exempts(t.spec, t.protocol.name, k[0], k[-1]) and P.printed(t.protocol, k[-1])})
         return now
 
@@ -356,20 +356,16 @@ class Study:
         out = StudyResults(artefacts=Artefacts(self.cache.root), reference=self._reference_of(scenes),
                            display=lambda name, t, w, h: self.display(by_name[name], t, w, h),
                            thesis_history=self.profile.thesis_history, tolerances=self.precision.tolerances)
-        out.precision = {}
-        every = {(t.scene, t.protocol.name): set(t.reference_tasks) for t in statics + ghosts + sweeps}
+        out.precision, every = {}, {(t.scene, t.protocol.name): set(t.reference_tasks) for t in statics + ghosts + sweeps}
         for (name, proto), seen in sorted(state.tried.items()):
             bounds = self.bounds_of(name, proto, every.get((name, proto)) or [None])
             out.precision.setdefault(name, {})[proto] = {"bound_lsb": min(bounds), "rule": self.precision.rule,
                                                          "bounds": {f"{b:g}": n for b, n in sorted(bounds.items())},
                                                          "over": state.over.get((name, proto), []), "rounds": seen}
-        by_scene = {}
-        for (name, kind), sec in sorted(session.scene_seconds.items()):
-            by_scene.setdefault(name, {})[kind] = round(sec, 2)
+        n_runs = sum(len(t.configs) for t in statics + ghosts + sweeps + sharpens)
         out.stats = {**computed_counts(results), "tasks": counts, "task_seconds": dict(session.task_seconds),
-                     "task_seconds_by_scene": by_scene}
-        out.stats["runs_cached"] = max(0, sum(len(t.configs) for t in statics + ghosts + sweeps + sharpens)
-                                       - out.stats["runs_computed"])
+                     "task_seconds_by_scene": session.seconds_by_scene()}
+        out.stats["runs_cached"] = max(0, n_runs - out.stats["runs_computed"])
         costs = self._costs(scenes, statics, results)
         for spec, scene in scenes:
             w, h = self.resolution(scene)
