@@ -45,6 +45,13 @@ def test_the_thesis_profile_is_the_thesis_s_study():
     assert p.agreement
     # references reuse the previous frame's pixels on sphere_ghosting alone (where it pays)
     assert dict(p.ref_settings)["reuse"] == ("sphere_ghosting",)
+    # a ghosting test bound by its means over the 100 frames and its temporal RMS; static by every figure
+    ex = p.precision
+    for c in labels[:5]:
+        assert all(ex.exempts(s, t, c, f) for s in GHOSTING for t in ("ghosting", "ghosting_warm")
+                   for f in ("mse", "psnr", "ssim", "flip_ldr"))
+        assert not any(ex.exempts(s, "ghosting", c, f) for s in GHOSTING for f in ("mse_mean", "psnr_mean", "temporal"))
+        assert not any(ex.exempts(s, "static", c, f) for s in STATIC for f in ("mse", "psnr", "ssim", "flip_ldr"))
 
 
 @pytest.mark.long(seconds=15)
