@@ -82,12 +82,33 @@ def test_agreement_targets_follow_the_references_precision_rule():
     assert "removed with its halves" in agreement_line(d)
 
 
+def test_the_floor_is_checked_at_the_upper_end_of_the_agreement_mse():
+    """A near-exact agreement against a noisy reference: MSE 4e-4 +- 0.06 is 82 dB, '+- 660 dB' to first
+    order, which put it below 45; the floor holds at the MSE's upper end, 10 log10(255^2 / 0.0604) =
+    60.3 dB. An MSE of 2 +- 0.5 (43.9 dB at its upper end) misses it. check_agreement records the floor."""
+    import math
+    from study.reporting.findings_text import agreement_line, floor_note
+    psnr, u_db = 10 * math.log10(255 ** 2 / 4e-4), 10 / math.log(10) * 0.06 / 4e-4
+    floor = 10 * math.log10(255 ** 2 / 0.0604)
+    a = _agreement(agreement_psnr_db=psnr, agreement_u_db=u_db, agreement_floor_db=floor, reference_rule="figures")
+    assert round(psnr, 1) == 82.1 and round(u_db) == 651 and round(floor, 1) == 60.3
+    assert a.meets_targets()["agreement_psnr_db"]
+    assert not _agreement(agreement_psnr_db=psnr, agreement_u_db=u_db).meets_targets()["agreement_psnr_db"]  # first order
+    assert "82.1, at least 60.3 dB" in floor_note(a.as_dict()) and "below its target" not in floor_note(a.as_dict())
+    assert "82.11, at least 60.32 dB" in agreement_line(a.as_dict())
+    worse = 10 * math.log10(255 ** 2 / 2.5)
+    assert not _agreement(agreement_psnr_db=10 * math.log10(255 ** 2 / 2), agreement_u_db=1.09,
+                          agreement_floor_db=worse).meets_targets()["agreement_psnr_db"]
+
+
 @pytest.mark.long(seconds=3)
 def test_a_figures_rule_reference_is_judged_as_one(tmp_path):
     """The study's settings under the figures rule (no noise target, held out) mark the check so."""
     a = check_agreement(get_scene("pipe"), 32, 18, samples=16, cache=ReferenceCache(tmp_path), progress=False,
                         se_bound_lsb=4.0, target_noise_db=0.0, held_out=True)
     assert a.reference_rule == "figures" and a.reference_se_bound_lsb == 4.0
+    # the floor at the MSE's upper end: below the PSNR, never above the first-order bound's PSNR
+    assert a.agreement_floor_db <= a.agreement_psnr_db and a.floor_db == a.agreement_floor_db
     assert a.meets_targets()["reference_noise_psnr_db"]
     b = check_agreement(get_scene("pipe"), 32, 18, samples=16, cache=ReferenceCache(tmp_path), progress=False)
     assert b.reference_rule == "per_pixel"

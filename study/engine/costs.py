@@ -26,11 +26,11 @@ from scenes.jitter import TAA_PERIOD, halton_offset, halton_offsets
 from study.config.protocols import Step, step_jitters
 from study.engine.drive import FrameSource, drive
 
-REPEATS = 5
+REPEATS = 3       # warm calls a median is taken over: 182 (scene, column) pairs in the quick study
 DISTINCT_SUBFRAMES = 4     # rendered sub-frames a supersampling technique's resolve is timed on
 
 
-def median_ms(fn, repeats: int = REPEATS, warmup: int = 2) -> float:
+def median_ms(fn, repeats: int = REPEATS, warmup: int = 1) -> float:
     """Median wall time of `fn` in ms over `repeats` calls after `warmup` (compiling) calls."""
     times = []
     for i in range(warmup + repeats):

@@ -144,9 +144,7 @@ def agreement_missed(agree: dict | None) -> list[str]:
     from study.config.defaults import AGREEMENT_TARGETS as TARGETS
     met, out = agree.get("targets_met", {}), []
     if met.get("agreement_psnr_db") is False:
-        u = agree.get("agreement_u_db") or 0.0
-        out.append(f"agreement {agree['agreement_psnr_db']:.2f}" + (f" ± {u:.2g}" if u else "")
-                   + f" dB < {TARGETS['agreement_psnr_db']:g} dB")
+        out.append(f"agreement {_agreement_db(agree, 2)} dB < {TARGETS['agreement_psnr_db']:g} dB")
     if met.get("interior_max_abs_err") is False:
         out.append(f"interior error {agree['interior_max_abs_err']:.2g} > {TARGETS['interior_max_abs_err']:g}")
     if met.get("reference_noise_psnr_db") is False:
@@ -161,15 +159,23 @@ def agreement_missed(agree: dict | None) -> list[str]:
     return out
 
 
+def _agreement_db(agree: dict, digits: int) -> str:
+    """The agreement PSNR with the reference's share: '+- u' where that is small beside the MSE,
+    else the floor it is checked at ('82.0, at least 60.3': its MSE's uncertainty near the MSE)."""
+    psnr, u, floor = agree["agreement_psnr_db"], agree.get("agreement_u_db") or 0.0, agree.get("agreement_floor_db")
+    if floor is not None and u > 1.0:
+        return f"{psnr:.{digits}f}, at least {floor:.{digits}f}"
+    return f"{psnr:.{digits}f}" + (f" ± {u:.2g}" if u >= 0.05 else "")
+
+
 def agreement_line(agree: dict | None) -> str:
     """A scene's raster-against-reference check in one readable line."""
     if not agree:
         return ""
     from study.config.defaults import AGREEMENT_TARGETS as TARGETS
-    u = agree.get("agreement_u_db") or 0.0
     missed = agreement_missed(agree)
-    return (f"Raster against reference: {agree['agreement_psnr_db']:.2f} dB"
-            + (f" ± {u:.2g}" if u else "") + f" (target ≥ {TARGETS['agreement_psnr_db']:g} dB) over the mean of "
+    return (f"Raster against reference: {_agreement_db(agree, 2)} dB"
+            + f" (target ≥ {TARGETS['agreement_psnr_db']:g} dB) over the mean of "
             f"{agree['raster_samples']} jittered raster frames; reference at {agree['reference_se_bound_lsb']:g} LSB "
             f"per pixel, {agree['reference_spp']} spp, noise {agree['reference_noise_psnr_db']:.1f} dB"
             + (" (removed with its halves; its share of the figure is the ±)" if agree.get("reference_rule") == "figures"
@@ -182,10 +188,9 @@ def floor_note(agree: dict | None) -> str:
     if not agree:
         return ""
     missed = agreement_missed(agree)
-    u = agree.get("agreement_u_db") or 0.0
     removed = " (removed with its halves)" if agree.get("reference_rule") == "figures" else ""
     return (f"Reference agreement (raster mean of {agree['raster_samples']} jittered frames vs reference): "
-            f"{agree['agreement_psnr_db']:.1f}" + (f" ± {u:.1g}" if u >= 0.05 else "") + " dB; reference noise "
+            f"{_agreement_db(agree, 1)} dB; reference noise "
             f"{agree['reference_noise_psnr_db']:.1f} dB at {agree['reference_spp']} spp{removed}"
             + (f" – below its target ({'; '.join(missed)}): every figure of this scene carries that error." if missed
                else ""))
