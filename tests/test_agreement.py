@@ -96,6 +96,8 @@ def test_the_floor_is_checked_at_the_upper_end_of_the_agreement_mse():
     assert not _agreement(agreement_psnr_db=psnr, agreement_u_db=u_db).meets_targets()["agreement_psnr_db"]  # first order
     assert "82.1, at least 60.3 dB" in floor_note(a.as_dict()) and "below its target" not in floor_note(a.as_dict())
     assert "82.11, at least 60.32 dB" in agreement_line(a.as_dict())
+    exact = _agreement(agreement_psnr_db=math.inf, agreement_u_db=0.0, agreement_floor_db=62.04).as_dict()
+    assert "vs reference): at least 62.0 dB;" in floor_note(exact)     # not "inf dB"
     worse = 10 * math.log10(255 ** 2 / 2.5)
     assert not _agreement(agreement_psnr_db=10 * math.log10(255 ** 2 / 2), agreement_u_db=1.09,
                           agreement_floor_db=worse).meets_targets()["agreement_psnr_db"]

@@ -163,6 +163,8 @@ def _agreement_db(agree: dict, digits: int) -> str:
     """The agreement PSNR with the reference's share: '+- u' where that is small beside the MSE,
     else the floor it is checked at ('82.0, at least 60.3': its MSE's uncertainty near the MSE)."""
     psnr, u, floor = agree["agreement_psnr_db"], agree.get("agreement_u_db") or 0.0, agree.get("agreement_floor_db")
+    if floor is not None and math.isinf(psnr) and math.isfinite(floor):
+        return f"at least {floor:.{digits}f}"       # the MSE within the reference's noise
     if floor is not None and u > 1.0:
         return f"{psnr:.{digits}f}, at least {floor:.{digits}f}"
     return f"{psnr:.{digits}f}" + (f" ± {u:.2g}" if u >= 0.05 else "")
