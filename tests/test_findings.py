@@ -192,7 +192,8 @@ def test_the_built_in_profiles_judge_against_the_thesis_s_ground_truth_without_r
     for name in ("quick", "full"):
         p = profile(name)
         gt = label_of(p.techniques)
-        assert gt == "Accumulation 128" and p.precision.exempt == (gt,)
+        # the quick profile's 16-sample supersampling too: a control as near the reference
+        assert gt == "Accumulation 128" and p.precision.exempt == ((gt, "SSAA 16x") if name == "quick" else (gt,))
         v = F.sharpen_variants(p.techniques)
         assert len(v) == 6
         ghost = [c.label for c in p.techniques
