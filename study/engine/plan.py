@@ -67,20 +67,18 @@ class Plan:
     agreements: dict = field(default_factory=dict)      # scene name -> (key, path)
     cached: dict = field(default_factory=dict)          # key -> result of a complete artefact
 
-    def counts(self) -> dict:
-        """Planned tasks by kind, a reference already in the cache too (its task reads it)."""
+    def counts(self, cached: bool = True) -> dict:
+        """Planned tasks by kind; `cached` False: but those whose file is already in the cache
+        (Task.likely_cached: a reference, whose task reads it)."""
         out: dict = {}
         for t in self.tasks.values():
-            out[t.kind] = out.get(t.kind, 0) + 1
+            if cached or not t.likely_cached:
+                out[t.kind] = out.get(t.kind, 0) + 1
         return out
 
     def to_compute(self) -> dict:
-        """Planned tasks by kind but those whose file is already in the cache (Task.likely_cached)."""
-        out: dict = {}
-        for t in self.tasks.values():
-            if not t.likely_cached:
-                out[t.kind] = out.get(t.kind, 0) + 1
-        return out
+        """Planned tasks by kind but those already in the cache."""
+        return self.counts(cached=False)
 
     def complete(self) -> int:
         """Artefacts already made: the cached results and the references found in the cache."""

@@ -47,7 +47,7 @@ from study.engine.rounds import FigureKey, InstantKey, Over, TestKey, instant_le
 from study.metrics import uncertainty as U
 
 
-MEAN = "_mean"      # a metric's mean over a sequence's frames: "mse_mean", ...
+MEAN = U.MEAN       # a metric's mean over a sequence's frames: "mse_mean", ...
 
 
 def figures_of(res, means: bool = False) -> dict:

@@ -33,6 +33,7 @@ TOLERANCE_OF = {"psnr": "psnr_db", "snr": "psnr_db", "ssim": "ssim", "ssim_volum
                 "flip_hdr": "flip", "mse": "relative", "rmsd": "relative", "relmse_hdr": "relmse",
                 "temporal": "relative"}
 _DERIVED = ("rmsd", "psnr", "snr")
+MEAN = "_mean"      # a metric's mean over a sequence's frames is the figure metric + MEAN ("mse_mean")
 
 
 def _finite(*xs) -> bool:
@@ -125,7 +126,7 @@ def tolerance(metric: str, value: float | None, tolerances: dict) -> float | Non
     float or None
         None for a metric without a tolerance, or a relative one on a missing or infinite value.
     """
-    key = TOLERANCE_OF.get(metric.removesuffix("_mean"))     # a mean over frames: its metric's
+    key = TOLERANCE_OF.get(metric.removesuffix(MEAN))     # a mean over frames: its metric's
     if key is None or key not in tolerances:
         return None
     if key in ("relative", "relmse"):
