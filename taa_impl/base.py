@@ -255,17 +255,19 @@ class Technique:
         frame = as_frame(frame, fields)
         if frame.samples is None:
             return self._frame(frame)
-        subs = tuple(frame.samples)
-        if not subs:
-            raise ValueError(f"{self.name} needs at least one sub-frame in samples")
-        shapes = {np.shape(s["color"])[:2] for s in subs}
-        if len(shapes) != 1:
-            raise ValueError(f"sub-frames of one output must share a resolution, got {sorted(shapes)}")
+        # read one sub-frame at a time: the driver's are rendered as they are read (SubFrames)
         self.reset()
-        total, out = 0, None
-        for bufs in subs:
+        total, out, first = 0, None, None
+        for bufs in frame.samples:
+            shape = np.shape(bufs["color"])[:2]
+            first = shape if first is None else first
+            if shape != first:
+                self.reset()
+                raise ValueError(f"sub-frames of one output must share a resolution, got {sorted({first, shape})}")
             out = self._frame(dataclasses.replace(frame, buffers=bufs, samples=None, reset=False))
             total += self.last_nonfinite_count
+        if first is None:
+            raise ValueError(f"{self.name} needs at least one sub-frame in samples")
         self.last_nonfinite_count = total
         return out
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import inspect
 import traceback
+from collections.abc import Sequence
 
 import numpy as np
 from tqdm import tqdm
@@ -114,11 +115,34 @@ class FrameSource:
         for key in [k for k in self._memo if k[0] < t]:
             del self._memo[key]
 
-    def forget(self, t: int, jitter, prev_t: int) -> None:
-        self._memo.pop(frame_key(t, jitter, prev_t), None)
+    def transient(self, t: int, jitter, prev_t: int, buffers) -> dict:
+        """One frame's `buffers` (with colour), rendered now and not kept (a supersampling
+        technique's sub-frame: SubFrames), or the kept frame where another step rendered it."""
+        got = self._memo.get(frame_key(t, jitter, prev_t))
+        if got is not None:
+            return got
+        self.rendered += 1
+        bufs = self.raster.render(t, jitter, tuple(sorted(set(buffers) | {"color"})), prev_t=prev_t)
+        return {k: _shared(v) for k, v in bufs.items()}
 
     def close(self):
         self.raster.close()
+
+
+class SubFrames(Sequence):
+    """The sub-frames of one supersampled output (Frame.samples), each rendered when it is read
+    and not kept: held at once, Accumulation 128's sub-frames at 1600x900 took about 6 GB."""
+
+    def __init__(self, src: FrameSource, t: int, jitters: list, prev_t: int, buffers):
+        self.src, self.t, self.jitters, self.prev_t, self.buffers = src, t, list(jitters), prev_t, buffers
+
+    def __len__(self) -> int:
+        return len(self.jitters)
+
+    def __getitem__(self, j):
+        if isinstance(j, slice):
+            return [self[i] for i in range(*j.indices(len(self)))]
+        return self.src.transient(self.t, self.jitters[j], self.prev_t, self.buffers)
 
 
 def drive(tech, step: Step, src: FrameSource, scene: ResolvedScene, width: int, height: int,
@@ -127,9 +151,9 @@ def drive(tech, step: Step, src: FrameSource, scene: ResolvedScene, width: int, 
     inp = tech.inputs
     cams = (scene.camera(step.t, width, height), scene.camera(step.prev_t, width, height)) if inp.cameras else None
     jitters = step_jitters(step, inp.sampling, inp.subframes, period=inp.jitter_period)
-    frames = [src.frame(step.t, j, step.prev_t) for j in jitters]
-    one = inp.sampling != "supersample"      # else: all sub-frames of one output at once
-    frame = Frame(buffers=frames[0] if one else {}, samples=None if one else tuple(frames),
+    one = inp.sampling != "supersample"      # else: all sub-frames of one output, rendered as read
+    frame = Frame(buffers=src.frame(step.t, jitters[0], step.prev_t) if one else {},
+                  samples=None if one else SubFrames(src, step.t, jitters, step.prev_t, inp.buffers),
                   jitter=jitters[0] if one else (0.0, 0.0), far=scene.desc.camera.far, reset=step.reset,
                   display=display if inp.display else None, cameras=cams,
                   output_size=(width, height) if inp.upsamples else None)
@@ -140,9 +164,6 @@ def drive(tech, step: Step, src: FrameSource, scene: ResolvedScene, width: int, 
         ss, ss_stats = src.raster.supersample(step.t, mask, halton_offsets(inp.extra_samples))
         frame = dataclasses.replace(frame, supersampled=ss, mask=mask)
     img = tech.process(frame)
-    if not one:
-        for j in jitters:   # sub-frames are not shared with later steps
-            src.forget(step.t, j, step.prev_t)
     return img, {**tech.last_stats, **ss_stats}
 
 

@@ -131,7 +131,7 @@ class Judge:
         self.ref_settings, self.display_settings = ref_settings, display_settings
         self.cache = ReferenceCache(Path(ctx.cache_root))
         self.times = [{int(f): int(t) for f, t in it["frame_times"].items()} for it in items]
-        self.state = [{"per_frame": {}, "uncertainty": {}, "maps": {}, "references": {},
+        self.state = [{"per_frame": {}, "uncertainty": {}, "references": {},
                        "temporal": {h: T.TemporalInstability() for h in HALVES}} for _ in items]
         # a pruned run's shown frames, written as they are judged (no whole run's images held at once)
         self.writers = [store.writer(Path(it["folder"])) for it in items]
@@ -168,7 +168,9 @@ class Judge:
             judged = M.all_metrics_against(list(refs.values()), x_lin, x_disp, x8, want_maps=keep,
                                            hdr=it.get("hdr", True))
             figs = {hv: got for hv, (got, _) in zip(refs, judged)}
-            st["maps"].update({f"maps_{f:04d}.exr": maps for (_, maps), k in zip(judged, keep) if k})
+            for (_, maps), k in zip(judged, keep):    # written now: a static test's 25 columns held ~1.5 GB
+                if k:
+                    self.writers[i].add(f"maps_{f:04d}.exr", maps)
             self.known[i].put(f, ref.key, dkey, figs)
         for hv, (_, _, r8, _) in refs.items():
             st["temporal"][hv].add(r8, x8)
@@ -188,8 +190,6 @@ class Judge:
                 temporal, temporal_u = c["temporal"], u["temporal"]
             data = {"per_frame": st["per_frame"], "uncertainty": st["uncertainty"], "temporal": temporal,
                     "temporal_u": temporal_u, "references": st["references"]}
-            for name, maps in st["maps"].items():
-                wr.add(name, maps)
             rec = wr.seal(it["key"], {"data": data, **({"judged_with_run": it.get("mark")} if self.with_run else {})})
             if it.get("keep") is not None:   # judged: only what the report shows stays (study.engine.plan)
                 # as shown, above; as float frames where the video metric reads them too
