@@ -15,6 +15,9 @@ from __future__ import annotations
 from scenes.description import MAX_SIDE
 
 BYTES_PER_PIXEL = 256
+# A kept raster frame's buffers, bytes per pixel each (raster.frames.BUFFERS; tested against a render)
+BUFFER_BYTES = {"color": 12, "albedo": 12, "normal": 12, "motion": 8, "depth": 4, "prev_depth": 4,
+                "object_id": 4, "prim_id": 4, "light_mask": 4}
 BASE_BYTES = 600 * 2 ** 20     # the interpreter, Dr.Jit, Mitsuba, the EGL context, scene data
 
 
@@ -34,6 +37,11 @@ def check_size(width: int, height: int, where: str) -> tuple[int, int]:
 def memory_need(width: int, height: int, processes: int = 1) -> int:
     """Bytes `processes` processes rendering width x height frames at once need (the module notes)."""
     return processes * (BASE_BYTES + BYTES_PER_PIXEL * int(width) * int(height))
+
+
+def frame_bytes(width: int, height: int, buffers) -> int:
+    """Bytes of one kept raster frame of these buffers (colour always)."""
+    return int(width) * int(height) * sum(BUFFER_BYTES[b] for b in set(buffers) | {"color"})
 
 
 def available_memory() -> int:

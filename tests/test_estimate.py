@@ -67,6 +67,11 @@ def test_units_of_a_tiny_study_by_hand_and_none_once_it_ran(tmp_path, monkeypatc
     # tiny_still is not animated: the static test only
     assert (still["references"], still["raster_frames"], still["subframes"]) == (2, 17, 4)
     assert (still["technique_steps"], still["technique_frames_judged"]) == (16 + 1 + 1, 3 + 1 + 1)
+    # its run task holds the 17 frames of its one instant, of the buffers Uncharted reads (colour 12,
+    # depth 4, motion 8 bytes a pixel; SSAA's sub-frames are read one at a time, not kept), one render
+    # in flight and each of 3 columns' share (study.engine.estimate.run_memory)
+    px = still["resolution"][0] * still["resolution"][1]
+    assert still["run_memory_bytes"] == 600 * 2 ** 20 + 256 * px + 17 * 24 * px + 3 * 40 * px
 
     run_cli(["run", path, "--out", tmp_path / "out", "--precision", "per_pixel"])
     doc = json.loads(run_cli(["estimate", path, "--json"]).output)
@@ -83,3 +88,18 @@ def test_units_of_a_tiny_study_by_hand_and_none_once_it_ran(tmp_path, monkeypatc
     assert line.startswith("units: tasks to compute {") and "'reference'" not in line, line
     scratch = json.loads(run_cli(["estimate", path, "--json", "--from-scratch"]).output)
     assert {r["scene"]: r for r in scratch["scenes"]} == got          # the whole study's work again
+
+
+def test_the_buffers_a_kept_frame_holds_are_priced_as_the_raster_makes_them():
+    """raster.limits.BUFFER_BYTES, which prices a run task's kept frames, against a render's arrays."""
+    from raster import Rasterizer
+    from raster.frames import BUFFERS
+    from raster.limits import BUFFER_BYTES, frame_bytes
+    from study.engine.tasks import load_scene
+    r = Rasterizer(load_scene("pipe"), 12, 8)
+    try:
+        got = r.render(0, (0.0, 0.0), BUFFERS, prev_t=0)
+    finally:
+        r.close()
+    assert {k: v.nbytes // (12 * 8) for k, v in got.items()} == BUFFER_BYTES
+    assert frame_bytes(12, 8, ["depth"]) == 12 * 8 * (12 + 4)          # colour is always kept

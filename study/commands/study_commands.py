@@ -125,7 +125,7 @@ def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
                "raster_frames": sw.raster_frames, "subframes": sum(sw.subframes.values()),
                "technique_steps": sum(sw.steps.values()), "technique_frames_judged": sum(sw.judged.values()),
                "technique_frames_written": sw.written,
-               "agreement_frames": sw.agreement_frames}
+               "agreement_frames": sw.agreement_frames, "run_memory_bytes": sw.run_memory}
         if measure:
             click.echo(f"estimate: measuring {name} at {sw.width}x{sw.height} ...", err=True)
             try:
@@ -145,7 +145,7 @@ def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
         rows.append(row)
     doc = {"study": prof.name, "tasks": plan.counts(), "to_compute": plan.to_compute(), "complete": plan.complete(),
            "scenes": rows, "disk": disk,
-           "memory": _memory_need(prof, names)}
+           "memory": _memory_need(prof, names, work)}
     if measure:
         doc["seconds"] = totals
     if as_json:
@@ -156,11 +156,11 @@ def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
     for line in D.describe(disk, remake):
         click.echo(line)
     mem = doc["memory"]
-    click.echo(f"memory: about {mem['per_process_gb']:.1f} GB per rendering process at the largest size "
-               f"({mem['width']}x{mem['height']}, scene {mem['scene']}), {mem['processes']} at once by default: "
+    click.echo(f"memory: about {mem['per_process_gb']:.1f} GB per process at its largest ({mem['what']}, "
+               f"{mem['width']}x{mem['height']}, scene {mem['scene']}), {mem['processes']} at once by default: "
                f"{mem['need_gb']:.1f} GB; {mem['available_gb']:.1f} GB available"
                + ("  [MORE THAN AVAILABLE: fewer --workers or a smaller resolution]" if mem["need_gb"] > mem["available_gb"]
-                  else "") + " (raster.limits)")
+                  else "") + " (raster.limits, study.engine.estimate.run_memory)")
     head = "scene | res | refs | raster | subframes | steps | judged | agreement"
     if measure:
         head += " | ref s/frame | metrics s/frame | est. ref min | est. total min"
@@ -181,20 +181,26 @@ def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
                       " more or less)" if study.precision.rule == "figures" else ")"))
 
 
-def _memory_need(prof, names) -> dict:
-    """The memory a study needs at its largest render size (raster.limits), per process and for
-    the processes the default executor runs at once."""
+def _memory_need(prof, names, work: dict) -> dict:
+    """The memory a study needs per process: the larger of a render at its largest size
+    (raster.limits) and its largest run task (study.engine.estimate.run_memory: the raster frames
+    a test keeps and its columns), and for the processes the default executor runs at once."""
     from raster.limits import available_memory, memory_need
     from study.commands.common import _study_size
     from study.engine.execute import Executor
     sizes = {n: _study_size(prof, n) for n in names}
     scene = max(sizes, key=lambda n: sizes[n][0] * sizes[n][1])
     w, h = sizes[scene]
+    per, what = memory_need(w, h), "a render"
+    runs = {n: sw.run_memory for n, sw in work.items() if sw.run_memory}
+    if runs and max(runs.values()) > per:
+        scene = max(runs, key=runs.get)
+        (w, h), per, what = (work[scene].width, work[scene].height), runs[scene], "a run task"
     ex = Executor.auto()
     procs = ex.workers if ex.kind == "auto" else 1
     gb = 2 ** 30
-    return {"scene": scene, "width": w, "height": h, "per_process_gb": memory_need(w, h) / gb, "processes": procs,
-            "need_gb": memory_need(w, h, procs) / gb, "available_gb": available_memory() / gb}
+    return {"scene": scene, "width": w, "height": h, "what": what, "per_process_gb": per / gb, "processes": procs,
+            "need_gb": per * procs / gb, "available_gb": available_memory() / gb}
 
 
 def _technique_names(ctx, param, value):

@@ -34,6 +34,7 @@ class SceneWork:
     reference_reads: int = 0                               # references the metrics tasks read (once each)
     agreement_frames: int = 0                               # raster frames the agreement check averages
     configs: dict = field(default_factory=dict)            # label -> TechniqueConfig
+    run_memory: int = 0                                    # bytes the largest run task holds (run_memory)
 
 
 def _get(out: dict, spec: str, scene, w: int, h: int) -> SceneWork:
@@ -65,6 +66,7 @@ def work(plan, cache=None) -> dict[str, SceneWork]:
             schedule = s.protocol.schedule(scene)
             frames = set()      # as study.engine.drive.FrameSource memoises them (one per render size,
             biased = has_trilinear(scene)   # and LOD bias where a texture is trilinear)
+            buffers: dict = {}  # (size, bias) -> the buffers its frames hold
             for c in s.configs:
                 inp = c.inputs()
                 sw.configs[c.label] = c
@@ -75,10 +77,12 @@ def work(plan, cache=None) -> dict[str, SceneWork]:
                     bias = lod_bias(c) if biased else 0.0
                     frames |= {(size, *frame_key(s.t, j, s.prev_t), bias) for s in steps
                                for j in step_jitters(s, inp.sampling, period=inp.jitter_period)}
+                    buffers.setdefault((size, bias), set()).update(inp.buffers)
                 else:
                     sw.subframes[c.label] = sw.subframes.get(c.label, 0) + len(steps) * inp.subframes
             # a frame below the output's size costs its share of the pixels (an upscaler's)
             sw.raster_frames += round(sum(f[0][0] * f[0][1] for f in frames) / (w * h), 3)
+            sw.run_memory = max(sw.run_memory, run_memory(w, h, frames, buffers, len(s.configs)))
         elif task.kind == "metrics":
             sw = _get(out, spec, load_scene(spec), w, h)
             for it in s.items:
@@ -86,6 +90,27 @@ def work(plan, cache=None) -> dict[str, SceneWork]:
                 sw.written += 0 if it["key"] in streamed else len(it["frame_times"])
             sw.reference_reads += len({t for it in s.items for t in it["frame_times"].values()})
     return out
+
+
+# What a run task holds besides its kept frames, per column and output pixel: the technique's history
+# and its step's temporaries, and the judged frame's metrics (measured: study.commands' estimate
+# notes, docs/performance.md "Memory")
+COLUMN_BYTES_PER_PIXEL = 40
+
+
+def run_memory(width: int, height: int, frames: set, buffers: dict, columns: int) -> int:
+    """Bytes a run task holds at its peak (study.engine.drive): the raster frames its sources keep
+    at once (those of one scene time: earlier times are dropped as a sequence moves; `frames` holds
+    (size, time, jitter x, jitter y, previous time, bias) keys, `buffers` (size, bias) -> the
+    buffers kept), one render in flight (raster.limits), and each column's share."""
+    from raster.limits import frame_bytes, memory_need
+    held: dict = {}
+    for size, t, *_, bias in frames:
+        held.setdefault((size, bias), {}).setdefault(t, 0)
+        held[(size, bias)][t] += 1
+    kept = sum(max(per_t.values()) * frame_bytes(*size, buffers[(size, bias)])
+               for (size, bias), per_t in held.items())
+    return memory_need(width, height) + kept + columns * COLUMN_BYTES_PER_PIXEL * width * height
 
 
 def measure_units(sw: SceneWork, ref_settings: dict, cache, configs: list) -> dict:
