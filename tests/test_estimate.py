@@ -71,7 +71,7 @@ def test_units_of_a_tiny_study_by_hand_and_none_once_it_ran(tmp_path, monkeypatc
     # depth 4, motion 8 bytes a pixel; SSAA's sub-frames are read one at a time, not kept), one render
     # in flight and each of 3 columns' share (study.engine.estimate.run_memory)
     px = still["resolution"][0] * still["resolution"][1]
-    assert still["run_memory_bytes"] == 600 * 2 ** 20 + 256 * px + 17 * 24 * px + 3 * 40 * px
+    assert still["run_memory_bytes"] == 600 * 2 ** 20 + 256 * px + 17 * 24 * px + 3 * 12 * px
 
     run_cli(["run", path, "--out", tmp_path / "out", "--precision", "per_pixel"])
     doc = json.loads(run_cli(["estimate", path, "--json"]).output)

@@ -321,12 +321,12 @@ def test_a_size_that_does_not_fit_in_memory_is_refused_before_any_output(tmp_pat
         and "0.5 GiB is available" in r.output, r.output
     assert not out.exists() and not (tmp_path / "cache").exists()
     # estimate prints the need of its largest process: here the run task, a render (600 MiB + 256 B a
-    # pixel) with No AA's one kept colour frame (12 B a pixel) and its column's share (40)
+    # pixel) with No AA's one kept colour frame (12 B a pixel) and its column's share (12)
     monkeypatch.setattr(L, "available_memory", lambda: 2 ** 34)
     r = CliRunner().invoke(main, ["estimate", _study(tmp_path, "[640, 360]"), "--json"])
     mem = json.loads(r.stdout)["memory"]
     assert (mem["width"], mem["height"], mem["scene"], mem["what"]) == (640, 360, "pipe", "a run task")
-    assert mem["per_process_gb"] == pytest.approx((600 * 2 ** 20 + (256 + 12 + 40) * 640 * 360) / 2 ** 30)
+    assert mem["per_process_gb"] == pytest.approx((600 * 2 ** 20 + (256 + 12 + 12) * 640 * 360) / 2 ** 30)
     assert mem["available_gb"] == 16.0
     r = CliRunner().invoke(main, ["estimate", _study(tmp_path, "[640, 360]")])
-    assert "memory: about 0.7 GB per process at its largest (a run task, 640x360, scene pipe)" in r.output
+    assert "memory: about 0.6 GB per process at its largest (a run task, 640x360, scene pipe)" in r.output

@@ -92,10 +92,10 @@ def work(plan, cache=None) -> dict[str, SceneWork]:
     return out
 
 
-# What a run task holds besides its kept frames, per column and output pixel: the technique's history
-# and its step's temporaries, and the judged frame's metrics (measured: study.commands' estimate
-# notes, docs/performance.md "Memory")
-COLUMN_BYTES_PER_PIXEL = 40
+# What a run task holds for each column besides the frames it keeps: a history of one colour (the
+# measured peak RSS of the thesis's ten columns on hairball_lit at 1600x900 was 2.14 GB, this model
+# 2.25; docs/performance.md, "Memory")
+COLUMN_BYTES_PER_PIXEL = 12
 
 
 def run_memory(width: int, height: int, frames: set, buffers: dict, columns: int) -> int:
