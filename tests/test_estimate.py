@@ -72,6 +72,10 @@ def test_units_of_a_tiny_study_by_hand_and_none_once_it_ran(tmp_path, monkeypatc
     # in flight and each of 3 columns' share (study.engine.estimate.run_memory)
     px = still["resolution"][0] * still["resolution"][1]
     assert still["run_memory_bytes"] == 600 * 2 ** 20 + 256 * px + 17 * 24 * px + 3 * 12 * px
+    # a moving test keeps one instant's frames (its warm test's 16 warm-up frames at t = 0, not all
+    # 19 of its run): tiny_moving's largest run task is its static test's, as tiny_still's
+    pm = mov["resolution"][0] * mov["resolution"][1]
+    assert mov["run_memory_bytes"] == 600 * 2 ** 20 + 256 * pm + 17 * 24 * pm + 3 * 12 * pm
 
     run_cli(["run", path, "--out", tmp_path / "out", "--precision", "per_pixel"])
     doc = json.loads(run_cli(["estimate", path, "--json"]).output)
