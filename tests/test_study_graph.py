@@ -197,6 +197,27 @@ def test_a_deterministic_failure_stops_every_executor_with_the_same_message(tmp_
     assert "technique 'Bad' produced NaN/Inf" in msgs[0][0]
 
 
+def test_a_task_that_ends_its_worker_process_is_named_with_its_likely_cause(tmp_path, scenes):
+    """A worker process that dies under a task (here the technique's own exit; at scale, memory past
+    the worker's limit) until Dask gives up (its KilledWorker; no retry here): exit 2, one message
+    naming the task and the likely cause, no traceback, no output."""
+    (tmp_path / "dies.py").write_text(
+        "import os\nfrom taa_impl.simple import NoAA\n"
+        "class Dies(NoAA):\n    name = 'dies'\n"
+        "    def process(self, frame, **kw):\n        os._exit(1)\n")
+    env = {**os.environ, "TAA_STUDY_CACHE": str(tmp_path / "cache"),
+           "DASK_DISTRIBUTED__SCHEDULER__ALLOWED_FAILURES": "0"}
+    r = subprocess.run([sys.executable, "-m", "study", "run", _study_file(scenes), "--scenes", scenes[1],
+                        "--no-agreement", "--techniques", f"Bad={tmp_path / 'dies.py'}:Dies", "--workers", "2",
+                        "--out", str(tmp_path / "o")], env=env, cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert r.returncode == 2, r.stderr[-3000:]
+    assert "Traceback" not in r.stderr
+    (msg,) = [line for line in r.stderr.splitlines() if line.startswith("error:")]
+    assert f"a run task of scene {scenes[1]}" in msg and "ended its worker process each time it ran" in msg, msg
+    assert "shared by 2 workers" in msg and "Fewer --workers" in msg, msg
+    assert not (tmp_path / "o" / "manifest.json").exists()
+
+
 def test_the_default_executor_shares_the_cores_and_runs_a_small_plan_in_process(monkeypatch):
     from study.commands.common import _executor
     from study.engine import execute as E

@@ -232,9 +232,14 @@ class Session:
                 results.update((k, r) for k, (r, _) in zip(keys, out) if not _stopped(r))
             else:
                 from distributed import as_completed
+                from distributed.scheduler import KilledWorker
                 futures = client.get(dsk, keys, sync=False)
                 for fut in as_completed(futures):
-                    r, seconds = fut.result()     # re-raises a task's own exception
+                    try:
+                        r, seconds = fut.result()     # re-raises a task's own exception
+                    except KilledWorker:
+                        raise _killed(plan.tasks[fut.key], None if self.executor.kind == "scheduler"
+                                      else self.executor.workers) from None
                     if not _stopped(r):
                         results[fut.key] = r
                         bar.finished(plan.tasks[fut.key].kind, seconds, fut.key)
@@ -247,6 +252,23 @@ class Session:
         self.scene_seconds.update(bar.by_scene)
         self.not_started = Counter(plan.tasks[k].kind for k in keys if k not in results)
         return results
+
+
+def _killed(task, workers: int | None):
+    """The error of a task whose worker process died each time it ran it (Dask's KilledWorker, after
+    its `allowed-failures` retries): the task's kind and scene, and the likely cause. `workers`: a
+    LocalCluster's (each may use its share of this machine's memory), None for a scheduler's."""
+    import psutil
+
+    from study.engine.tasks import TaskError
+    spec = task.spec
+    where = f" of scene {getattr(spec, 'scene', '?')} at {spec.width}x{spec.height}" if hasattr(spec, "width") else ""
+    share = "" if workers is None else (f" ({psutil.virtual_memory().total / max(workers, 1) / 2 ** 30:.1f} GB, "
+                                        f"this machine's memory shared by {workers} workers)")
+    fewer = "Fewer --workers gives each more memory; " if workers is not None else ""
+    return TaskError(f"a {task.kind} task{where} ended its worker process each time it ran (Dask's KilledWorker): "
+                     f"most often memory past the worker's limit{share}, or a crash in native code. {fewer}"
+                     f"`taa-study estimate` prints what the study's largest process needs")
 
 
 def _stopped(result) -> bool:
