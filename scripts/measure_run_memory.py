@@ -40,10 +40,11 @@ def main() -> None:
 
     from display import DisplayTransform
     from raster import Rasterizer
-    from study.config.protocols import frame_key, static_schedule, step_jitters
+    from shading.mips import has_trilinear
+    from study.config.protocols import static_schedule
     from study.config.techniques import TechniqueConfig
     from study.engine.drive import run_schedule
-    from study.engine.estimate import run_memory
+    from study.engine.estimate import raster_frames, run_memory
     from study.engine.tasks import load_scene
 
     scene = load_scene(a.scene)
@@ -70,15 +71,8 @@ def main() -> None:
     done.set()
     peak[0] = max(peak[0], _rss())
 
-    frames, buffers = set(), set()
-    for c in configs:
-        inp = c.inputs()
-        if inp.sampling in ("sequence", "centre"):
-            steps = schedule if inp.sampling == "sequence" else [s for s in schedule if s.keep]
-            frames |= {((w, h), *frame_key(s.t, j, s.prev_t), 0.0) for s in steps
-                       for j in step_jitters(s, inp.sampling, period=inp.jitter_period)}
-            buffers |= set(inp.buffers)
-    model = run_memory(w, h, frames, {((w, h), 0.0): buffers}, len(configs))
+    frames, buffers = raster_frames(schedule, configs, w, h, has_trilinear(scene))
+    model = run_memory(w, h, frames, buffers, len(configs))
     print(f"{a.scene} {w}x{h}, {len(configs)} columns, {a.steps} steps: {seconds:.1f} s, peak RSS "
           f"{peak[0] / 1e9:.2f} GB; estimate.run_memory {model / 1e9:.2f} GB ({len(frames)} kept frames)")
 

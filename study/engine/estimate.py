@@ -44,7 +44,6 @@ def _get(out: dict, spec: str, scene, w: int, h: int) -> SceneWork:
 def work(plan, cache=None) -> dict[str, SceneWork]:
     """Per scene, the units the plan's tasks will compute (a reference `cache` holds is no work)."""
     from shading.mips import has_trilinear
-    from study.config.techniques import lod_bias
     from study.engine.tasks import load_scene
     out: dict[str, SceneWork] = {}
     # metrics judged by their run task as it makes the run (study.engine.run_task): no frame written
@@ -64,22 +63,14 @@ def work(plan, cache=None) -> dict[str, SceneWork]:
             scene = load_scene(spec)
             sw = _get(out, spec, scene, w, h)
             schedule = s.protocol.schedule(scene)
-            frames = set()      # as study.engine.drive.FrameSource memoises them (one per render size,
-            biased = has_trilinear(scene)   # and LOD bias where a texture is trilinear)
-            buffers: dict = {}  # (size, bias) -> the buffers its frames hold
             for c in s.configs:
                 inp = c.inputs()
                 sw.configs[c.label] = c
                 steps = schedule if inp.sampling == "sequence" else judged_steps(schedule, inp.sampling)
                 sw.steps[c.label] = sw.steps.get(c.label, 0) + len(steps)
-                if inp.sampling in ("sequence", "centre"):
-                    size = render_size(w, h, inp.render_scale)
-                    bias = lod_bias(c) if biased else 0.0
-                    frames |= {(size, *frame_key(s.t, j, s.prev_t), bias) for s in steps
-                               for j in step_jitters(s, inp.sampling, period=inp.jitter_period)}
-                    buffers.setdefault((size, bias), set()).update(inp.buffers)
-                else:
+                if inp.sampling == "supersample":
                     sw.subframes[c.label] = sw.subframes.get(c.label, 0) + len(steps) * inp.subframes
+            frames, buffers = raster_frames(schedule, s.configs, w, h, has_trilinear(scene))
             # a frame below the output's size costs its share of the pixels (an upscaler's)
             sw.raster_frames += round(sum(f[0][0] * f[0][1] for f in frames) / (w * h), 3)
             sw.run_memory = max(sw.run_memory, run_memory(w, h, frames, buffers, len(s.configs)))
@@ -90,6 +81,27 @@ def work(plan, cache=None) -> dict[str, SceneWork]:
                 sw.written += 0 if it["key"] in streamed else len(it["frame_times"])
             sw.reference_reads += len({t for it in s.items for t in it["frame_times"].values()})
     return out
+
+
+def raster_frames(schedule: list, configs: list, w: int, h: int, biased: bool) -> tuple[set, dict]:
+    """The distinct raster frames a run of `configs` over `schedule` at w x h renders, as
+    study.engine.drive.FrameSource memoises them (one source per render size, and per LOD bias where
+    a texture is trilinear: `biased`), as (size, time, jitter x, jitter y, previous time, bias) keys;
+    and (size, bias) -> the buffers those frames hold. A supersampling column's sub-frames are not
+    kept, so not here."""
+    from study.config.techniques import lod_bias
+    frames, buffers = set(), {}
+    for c in configs:
+        inp = c.inputs()
+        if inp.sampling not in ("sequence", "centre"):
+            continue
+        steps = schedule if inp.sampling == "sequence" else judged_steps(schedule, inp.sampling)
+        size = render_size(w, h, inp.render_scale)
+        bias = lod_bias(c) if biased else 0.0
+        frames |= {(size, *frame_key(s.t, j, s.prev_t), bias) for s in steps
+                   for j in step_jitters(s, inp.sampling, period=inp.jitter_period)}
+        buffers.setdefault((size, bias), set()).update(inp.buffers)
+    return frames, buffers
 
 
 # What a run task holds for each column besides the frames it keeps: a history of one colour (the
