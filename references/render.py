@@ -149,7 +149,7 @@ def render_reference(scene: ResolvedScene, t: int, width: int, height: int, *,
                 reuse = None
                 continue
             return ref
-        over = (ref.display_stderr.max(axis=-1).ravel() > se_bound_lsb * LSB * (1 + _DRIFT)) & reuse["mask"]
+        over = (E.fold(np.maximum, ref.display_stderr).ravel() > se_bound_lsb * LSB * (1 + _DRIFT)) & reuse["mask"]
         if not over.any():
             return ref
         reuse["mask"] = reuse["mask"] & ~over
@@ -204,6 +204,8 @@ def converge(tracer, width: int, height: int, what: str, *, se_bound_lsb: float,
     history = []
     kept = np.zeros(npix, bool) if reuse is None else np.asarray(reuse["mask"], bool)
     active = ~kept
+    kix = np.flatnonzero(kept)                # as indices: a boolean mask is read whole each time
+    kept_dse = reuse["dse"][kix] if len(kix) else None
 
     def record(dse):
         db = E.noise_db(dse)
@@ -230,8 +232,8 @@ def converge(tracer, width: int, height: int, what: str, *, se_bound_lsb: float,
         if not np.all(np.isfinite(sums)):
             raise ReferenceError(f"{what}: the pilot produced NaN/Inf")
         pilot[g] = sums / spp_per_pass
-        lo[g], hi[g] = glo[:, :dg].min(axis=1), ghi[:, :dg].max(axis=1)
-        lo_all[g], hi_all[g] = glo.min(axis=1), ghi.max(axis=1)
+        lo[g], hi[g] = E.fold(np.minimum, glo[:, :dg], 1), E.fold(np.maximum, ghi[:, :dg], 1)
+        lo_all[g], hi_all[g] = E.fold(np.minimum, glo, 1), E.fold(np.maximum, ghi, 1)
     est = E.Estimates(pilot, spp_per_pass, r, held_out)
     del pilot
     # the current mean's transform, re-derived every round: one pass of a few samples can be far
@@ -252,8 +254,8 @@ def converge(tracer, width: int, height: int, what: str, *, se_bound_lsb: float,
 
     def pin():
         # the given pixels' display SE is their own, their floor in it
-        if kept.any():
-            dse_s[kept], floor_d[kept] = reuse["dse"][kept], 0.0
+        if len(kix):
+            dse_s[kix], floor_d[kix] = kept_dse, 0.0
 
     update_floor(contrast(lo, hi))
     pin()
@@ -265,7 +267,7 @@ def converge(tracer, width: int, height: int, what: str, *, se_bound_lsb: float,
     target_mse = 10 ** (-target_noise_db / 10)
     rounds = tightened = 0
     while True:
-        worst_s, worst_f = dse_s.max(axis=-1), floor_d.max(axis=-1)
+        worst_s, worst_f = E.fold(np.maximum, dse_s), E.fold(np.maximum, floor_d)
         worst = np.maximum(worst_s, worst_f)
         over = (worst > bound) & (est.m < cap) & active
         spp = est.spp_estimate
@@ -299,9 +301,10 @@ def converge(tracer, width: int, height: int, what: str, *, se_bound_lsb: float,
                 if not np.all(np.isfinite(sums)):
                     raise ReferenceError(f"{what}: round {rounds} produced NaN/Inf")
                 est.add(g, int(a), sums)
-                lo[g] = np.minimum(lo[g], glo[:, :rdg].min(axis=1))
-                hi[g] = np.maximum(hi[g], ghi[:, :rdg].max(axis=1))
-                lo_all[g], hi_all[g] = np.minimum(lo_all[g], glo.min(axis=1)), np.maximum(hi_all[g], ghi.max(axis=1))
+                lo[g] = np.minimum(lo[g], E.fold(np.minimum, glo[:, :rdg], 1))
+                hi[g] = np.maximum(hi[g], E.fold(np.maximum, ghi[:, :rdg], 1))
+                lo_all[g] = np.minimum(lo_all[g], E.fold(np.minimum, glo, 1))
+                hi_all[g] = np.maximum(hi_all[g], E.fold(np.maximum, ghi, 1))
         dse_s[pix] = E.display_se(disp, est.dmean[pix], est.dcov[pix])
         # the floor moves where a pixel or a neighbour got samples (new extremes, or more samples)
         touched = np.zeros(npix, bool)
@@ -311,7 +314,7 @@ def converge(tracer, width: int, height: int, what: str, *, se_bound_lsb: float,
         now = DisplayTransform.from_reference(est.dmean.reshape(height, width, 3))
         if now != disp:                   # (to 3 digits) every pixel's display error moves with it
             disp = now
-            noisy = np.flatnonzero(np.any(np.diagonal(est.dcov, axis1=1, axis2=2) > 0, axis=-1))
+            noisy = np.flatnonzero(E.fold(np.logical_or, np.diagonal(est.dcov, axis1=1, axis2=2) > 0))
             dse_s[:] = 0.0
             dse_s[noisy] = E.display_se(disp, est.dmean[noisy], est.dcov[noisy])
             update_floor(contrast(lo, hi))
@@ -324,7 +327,7 @@ def converge(tracer, width: int, height: int, what: str, *, se_bound_lsb: float,
     mean, cov = est.estimate()
     disp = DisplayTransform.from_reference(mean.reshape(height, width, 3))
     dse = np.zeros((npix, 3))
-    noisy = np.flatnonzero(np.any(np.diagonal(cov, axis1=1, axis2=2) > 0, axis=-1))
+    noisy = np.flatnonzero(E.fold(np.logical_or, np.diagonal(cov, axis1=1, axis2=2) > 0))
     dse[noisy] = E.display_se(disp, mean[noisy], cov[noisy])
     spread = dse.copy()
     floor_d, floor_l = np.zeros((npix, 3)), np.zeros((npix, 3))
@@ -336,24 +339,26 @@ def converge(tracer, width: int, height: int, what: str, *, se_bound_lsb: float,
     lin_se = np.maximum(E.linear_se(cov), floor_l)
     spp_all = est.spp.copy()
     half = est.half_delta(mean)
-    if kept.any():
-        k = kept
+    if len(kix):
+        k = kix
         mean[k], lin_se[k], half[k], spp_all[k] = reuse["image"][k], reuse["stderr"][k], reuse["half"][k], reuse["spp"][k]
         # the display SE of a given pixel under this frame's transform: its own, times how much
-        # the transform's slope at its value moved
-        diag = np.zeros((int(k.sum()), 3, 3))
-        diag[:, [0, 1, 2], [0, 1, 2]] = reuse["stderr"][k].astype(np.float64) ** 2
-        was = E.display_se(reuse["disp"], mean[k], diag)
-        now_ = E.display_se(disp, mean[k], diag)
-        ratio = np.divide(now_, was, out=np.ones_like(was), where=was > 0)
+        # the transform's slope at its value moved (not at all under the same transform: x / x is 1)
+        ratio = np.ones((len(k), 3))
+        if disp != reuse["disp"]:
+            diag = np.zeros((len(k), 3, 3))
+            diag[:, [0, 1, 2], [0, 1, 2]] = reuse["stderr"][k].astype(np.float64) ** 2
+            was = E.display_se(reuse["disp"], mean[k], diag)
+            now_ = E.display_se(disp, mean[k], diag)
+            ratio = np.divide(now_, was, out=ratio, where=was > 0)
         dse[k], floor_d[k] = reuse["dse"][k] * ratio, reuse["floor"][k] * ratio
         reuse["slope"] = np.ones(npix)
-        reuse["slope"][k] = ratio.max(axis=-1)
+        reuse["slope"][k] = E.fold(np.maximum, ratio)
         spread[k] = dse[k]
     spp_map = spp_all.reshape(height, width)
     b0 = se_bound_lsb * LSB
-    missed = (dse.max(axis=-1) > b0 * (1 + 1e-5)) & active
-    needed = (E.samples_needed(est.spp_estimate, spread.max(axis=-1), floor_d.max(axis=-1), b0)[missed]
+    missed = (E.fold(np.maximum, dse) > b0 * (1 + 1e-5)) & active
+    needed = (E.samples_needed(est.spp_estimate, E.fold(np.maximum, spread), E.fold(np.maximum, floor_d), b0)[missed]
               * (est.spp[missed] / est.spp_estimate[missed]))
     return Reference(mean.reshape(height, width, 3).astype(np.float32),
                      lin_se.reshape(height, width, 3).astype(np.float32),

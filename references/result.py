@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import settings as S
+from .estimates import fold
 
 LSB = 1.0 / 255.0
 
@@ -52,7 +53,7 @@ class Reference:
     @property
     def se_lsb(self) -> np.ndarray:
         """(H, W) display-domain SE of the worst channel, in 8-bit LSB."""
-        return self.display_stderr.max(axis=-1) / LSB
+        return fold(np.maximum, self.display_stderr) / LSB
 
     @property
     def spp_mean(self) -> float:
@@ -81,7 +82,7 @@ class Reference:
         """Pixels whose reported SE is the unseen-feature floor, not the spread of their samples."""
         if self.display_floor is None:
             return 0
-        return int(np.sum(np.any((self.display_floor >= self.display_stderr) & (self.display_stderr > 0), axis=-1)))
+        return int(np.sum(fold(np.logical_or, (self.display_floor >= self.display_stderr) & (self.display_stderr > 0))))
 
     @property
     def over_bound(self) -> int:

@@ -30,6 +30,39 @@ def test_fit_keeps_the_cheapest_runs_whole_while_they_fit_and_prunes_the_rest():
         D.fit(need, floor - GB, True, Path("/c"), log=logs.append)
 
 
+def test_fit_keeps_runs_whole_within_the_disk_budget_and_a_small_budget_prunes_without_error():
+    need = {"references": 3 * GB, "maps": 1 * GB,
+            "tests": {("a", "static"): (2 * GB, 1 * GB), ("b", "ghosting"): (10 * GB, 1 * GB),
+                      ("c", "ghosting"): (5 * GB, 1 * GB)}, "run": 9 * GB}
+    floor, spare = (3 + 1 + 3 + 2 + 4 * 9) * GB, 2 * GB
+    logs = []
+    # the disk has room for all three whole (14 GB over the floor); the budget leaves 5 GB over what
+    # the cache must hold (its margin is the disk's, not the cache's): a (1) and c (4) whole, b pruned
+    assert D.fit(need, floor + 14 * GB, True, Path("/c"), log=logs.append,
+                 budget=floor - spare + 5 * GB) == {("b", "ghosting")}
+    assert "the disk budget leaves" in logs[-1]
+    assert D.fit(need, floor + 14 * GB, True, Path("/c"), log=logs.append,
+                 budget=floor - spare + 4 * GB) == {("b", "ghosting"), ("c", "ghosting")}     # a alone
+    # the free disk binds before a larger budget does
+    assert D.fit(need, floor + 4 * GB, True, Path("/c"), log=logs.append, budget=10 ** 15) == {("b", "ghosting"), ("c", "ghosting")}
+    # a budget under what the plan must hold prunes every test; the free disk alone stops a study
+    assert D.fit(need, floor + 14 * GB, True, Path("/c"), log=logs.append, budget=GB) == frozenset(need["tests"])
+    # estimate's figure: the peak planned is the budget (with its margin) when it binds
+    judged_as_made = {**need, "run": 0}   # margin a quarter of 7: least 3 + 1 + 3 + 1.75, peak 3 + 1 + 17 + 1.75
+    s = D.summary(judged_as_made, floor, False, True, budget=12 * GB)
+    assert (s["least_gb"], s["peak_gb"], s["budget_gb"], s["planned_gb"]) == (8.75, 22.75, 12, 13.75)
+    assert "within the profile's disk_budget_gb of 12 GB" in "\n".join(D.describe(s))
+    assert D.summary(judged_as_made, floor, False, True, budget=30 * GB)["planned_gb"] == 22.75     # the peak fits
+
+
+def test_used_bytes_counts_every_file_under_a_folder(tmp_path):
+    (tmp_path / "a" / "b").mkdir(parents=True)
+    (tmp_path / "a" / "x.bin").write_bytes(b"1" * 1000)
+    (tmp_path / "a" / "b" / "y.bin").write_bytes(b"2" * 24)
+    assert D.used_bytes(tmp_path) == 1024
+    assert D.used_bytes(tmp_path / "missing") == 0
+
+
 EDGES = np.array([0.0, -0.0, 1.0, -1.0, np.nextafter(np.float32(1), np.float32(2)), 1e-45, -1e-45,
                   np.finfo(np.float32).tiny, np.finfo(np.float32).smallest_subnormal * 3, np.finfo(np.float32).max,
                   -np.finfo(np.float32).max, np.finfo(np.float32).eps, 65504.0, 65505.0, 6e-8, 3.1e38], np.float32)

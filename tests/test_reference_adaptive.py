@@ -252,3 +252,27 @@ def test_the_tracer_reduces_the_extremes_of_runs_of_sets_as_the_host_would():
     assert np.any(lo[:, 0] != lo[:, 1])      # the runs do hold different sets
     with pytest.raises(ValueError, match="groups must divide"):
         tracer.sets(pix, 8, 4, seed=5, groups=3)
+
+
+def test_fold_and_window_equal_numpy_reductions_and_a_naive_window():
+    """The adaptive loop's reductions over a short axis (references.estimates.fold) give numpy's
+    values exactly, ties and signed zeros included; the in-place 3x3 window equals a loop over
+    each pixel's clamped neighbourhood."""
+    from references import estimates as E
+    rng = np.random.default_rng(3)
+    a = rng.integers(-3, 4, (500, 4, 3)).astype(np.float64) * 0.5      # many ties
+    a[0, 0, 0] = -0.0
+    for axis in (1, -1):
+        assert np.array_equal(E.fold(np.maximum, a, axis), a.max(axis=axis))
+        assert np.array_equal(E.fold(np.minimum, a, axis), a.min(axis=axis))
+    assert np.array_equal(E.fold(np.logical_or, a > 1.0), np.any(a > 1.0, axis=-1))
+    nan = a.copy()
+    nan[7, 2, 1] = np.nan
+    assert np.isnan(E.fold(np.maximum, nan, 1)[7, 1])      # NaN spreads as numpy's max spreads it
+    img = rng.random((5, 7, 3))
+    for op, red in ((np.maximum, np.max), (np.minimum, np.min)):
+        want = np.empty_like(img)
+        for y in range(5):
+            for x in range(7):
+                want[y, x] = red(img[max(y - 1, 0):y + 2, max(x - 1, 0):x + 2].reshape(-1, 3), axis=0)
+        assert np.array_equal(E.window(img, op), want)

@@ -118,7 +118,8 @@ def estimate(study_file, profile, scene_list, measure, from_scratch, as_json):
     # what the run plans for: the profile's policy (runs pruned once judged, or whole while they refine)
     pruned = prof.runs_while_refining == "pruned" or study.precision.rule != "figures"
     removing = None if study.precision.rule != "figures" else not prof.keep_superseded
-    disk = D.summary(need, D.free_bytes(study.cache.root), pruned, removing)
+    budget = None if prof.disk_budget_gb is None else int(prof.disk_budget_gb * 2 ** 30)
+    disk = D.summary(need, D.free_bytes(study.cache.root), pruned, removing, budget)
     rows, totals = [], {}
     for name, sw in work.items():
         row = {"scene": name, "resolution": [sw.width, sw.height], "references": sw.references,

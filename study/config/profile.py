@@ -105,6 +105,9 @@ class Profile:
     # 'whole': a test's runs keep every judged frame while its references refine (as the disk allows,
     # study.engine.disk.fit); 'pruned': pruned once judged, made again if the test is refined
     runs_while_refining: str = "whole"
+    # the most the cache folder may hold: runs stay whole while they refine only within it too
+    # (study.engine.disk.fit); it moves time, never a figure, so it is not in the repr either
+    disk_budget_gb: float | None = field(default=None, repr=False)
     # False: a reference and the metrics records judged against it are removed once a finer bound
     # replaces them for this study (study.engine.supersede; the thesis profile). True keeps them for a
     # later study that starts there (an `ab` study's new column, a study of other scenes at the probe).

@@ -169,6 +169,7 @@ class StudyModel(_Model):
     reference: dict[str, Any] = Field(default_factory=lambda: dict(D.REFERENCE))
     keep_frames: Literal["report", "all"] = D.KEEP_FRAMES
     runs_while_refining: Literal["whole", "pruned"] = "whole"
+    disk_budget_gb: Union[float, None] = Field(None, gt=0)
     keep_superseded: bool = True
     precision: PrecisionEntry = Field(default_factory=PrecisionEntry)
     video: VideoEntry = Field(default_factory=VideoEntry)
@@ -300,7 +301,7 @@ def load_study(path: str | Path) -> Profile:
                    scenes=tuple(scenes), techniques=tuple(configs), out=out, agreement=m.agreement,
                    sweep=m.sweep, sharpen_sweep=tuple(m.sharpen_sweep), sharpen_sweep_scenes=tuple(m.sharpen_sweep_scenes),
                    thesis_history=st.thesis_history, keep_frames=m.keep_frames, runs_while_refining=m.runs_while_refining,
-                   keep_superseded=m.keep_superseded,
+                   keep_superseded=m.keep_superseded, disk_budget_gb=m.disk_budget_gb,
                    source=str(path),
                    precision=Precision(**prec, exemptions=tuple(exemptions)), video=Video(**m.video.model_dump()),
                    scene_groups=tuple(groups))

@@ -12,7 +12,7 @@ test's 24 slider frames, a static view) is kept as the 8-bit PNG it shows, in it
 A plan that cannot fit even so stops before computing anything, naming the folder and the sizes.
 
 What a settled test keeps: its references (the expensive asset, re-keyed only by code changes;
-ZIP or Zstandard, whichever is smaller), its metrics records with their SSIM/FLIP maps (the
+Zstandard), its metrics records with their SSIM/FLIP maps (the
 report's and paper's map images and EXR) and the PNGs of the frames the report shows; its runs'
 done records (what a later study checks) with no frame, unless kept whole (`keep_frames = "all"`,
 the video metric's columns, or runs kept whole while refining, pruned to their shown frames once
@@ -29,7 +29,7 @@ from study.engine.tasks import TaskError
 
 # Bytes a pixel takes on disk, measured on real 1600x900 files (scripts/measure_disk.py): a run's
 # judged frame (float RGB, ZIP: 5.9-6.4 for the thesis scenes' TAA frames), a reference (image,
-# standard errors, floor, halves' difference, spp; ZIP or Zstandard, the smaller: sphere_ghosting
+# standard errors, floor, halves' difference, spp; Zstandard, measured as the smaller of it and ZIP: sphere_ghosting
 # 23.4, whose floor's path-traced noise ZIP kept at 36.7; hairball_rotating_unlit 11.0, hard_edges 6.3,
 # pipe 1.2),
 # a reference's sample extremes, stored for reuse until the next frame is made (references.cache:
@@ -38,7 +38,8 @@ from study.engine.tasks import TaskError
 # (0.02-0.14 for a raster frame, SHOWN_BYTES for the most detailed TAA output measured)
 FRAME_BYTES, REFERENCE_BYTES, EXTREMES_BYTES, MAPS_BYTES, SHOWN_BYTES = 7, 24, 18, 11, 1
 # a reference's bytes a pixel where measured at 1600x900 (the smaller of ZIP and Zstandard, rounded
-# up): the thesis's scenes; the nine static ones and hairball_rotating_lit took 10-15.3 in ZIP
+# up): the thesis's scenes; the nine static ones and hairball_rotating_lit took 10-15.3 in ZIP, and
+# in Zstandard alone (what references are written in) at most 14.6 (blinds)
 REFERENCE_BYTES_OF = {"sphere_ghosting": 24, "hairball_rotating_unlit": 12, "pipe": 2, "hard_edges": 7,
                       **dict.fromkeys(("pipe_tilted", "blinds", "arched_window", "atrium", "flowers",
                                        "hairball_unlit", "hairball_lit", "hairball_rotating_lit"), 16)}
@@ -128,7 +129,7 @@ def size(n: float) -> str:
     return f"{n / 2 ** 10:.1f} KB"
 
 
-def summary(need: dict, free: int, pruned: bool, removing: bool | None = None) -> dict:
+def summary(need: dict, free: int, pruned: bool, removing: bool | None = None, budget: int | None = None) -> dict:
     """What `estimate` reports of the plan's disk `need` (needs), in GB: references, maps, runs whole
     and pruned, `free`, the peak with every test's runs whole while it refines, the least (every
     test's runs pruned once judged, IN_FLIGHT being judged), each with its margin, and the peak
@@ -137,7 +138,9 @@ def summary(need: dict, free: int, pruned: bool, removing: bool | None = None) -
     peak is the max over rounds, a finer round's references in place of those they replace (these
     are removed before it renders, the probe's too: their display transforms stay as records);
     False: they are kept, and the figures price the first round only (each refinement adds its
-    references and records); None: nothing is refined (the per-pixel rule)."""
+    references and records); None: nothing is refined (the per-pixel rule). `budget`: the profile's
+    disk_budget_gb in bytes, which runs kept whole stay within (fit): the peak planned is then at
+    most it, or the least if that is over it."""
     gb = 2 ** 30
     tests = need["tests"].values()
     whole, kept = sum(w for w, _ in tests), sum(k for _, k in tests)
@@ -146,8 +149,11 @@ def summary(need: dict, free: int, pruned: bool, removing: bool | None = None) -
            "peak_gb": (need["references"] + need["maps"] + whole + margin(need)) / gb,
            "least_gb": (need["references"] + need["maps"] + kept + IN_FLIGHT * need["run"] + margin(need)) / gb,
            "runs_while_refining": "pruned" if pruned else "whole",
-           "superseded": {True: "removed", False: "kept", None: "none"}[removing]}
+           "superseded": {True: "removed", False: "kept", None: "none"}[removing],
+           "budget_gb": None if budget is None else budget / gb}
     out["planned_gb"] = out["least_gb"] if pruned else out["peak_gb"]
+    if not pruned and budget is not None:
+        out["planned_gb"] = min(out["peak_gb"], max(out["least_gb"], budget / gb + margin(need) / gb))
     return out
 
 
@@ -155,7 +161,9 @@ def describe(disk: dict, remake_s: float | None = None) -> list[str]:
     """`estimate`'s lines for a `summary`; `remake_s`: the measured seconds of the plan's runs (what
     a refinement round remakes at most when they are pruned)."""
     pruned = disk["runs_while_refining"] == "pruned"
-    cost = ("" if not pruned else "; each refinement round remakes the refined tests' runs, " + (
+    within = disk.get("budget_gb") is not None and not pruned and disk["planned_gb"] < disk["peak_gb"]
+    cost = (f"; within the profile's disk_budget_gb of {disk['budget_gb']:.0f} GB: the rest pruned once judged, "
+            "the tests cheapest to keep whole kept" if within else "") + ("" if not pruned else "; each refinement round remakes the refined tests' runs, " + (
         f"at most {remake_s / 60:.0f} min a round" if remake_s is not None else "their time: --measure"))
     return [f"disk: references {disk['references_gb']:.1f} GB, runs {disk['runs_whole_gb']:.1f} GB whole while "
             f"their tests refine ({disk['runs_kept_gb']:.1f} GB once pruned to the frames the report reads), "
@@ -181,11 +189,14 @@ def _assumes(disk: dict) -> str:
 
 
 def fit(need: dict, free: int, figures: bool, folder: Path, already: frozenset = frozenset(),
-        log=print) -> frozenset:
+        log=print, budget: int | None = None) -> frozenset:
     """The tests whose runs are pruned once judged: `already` and, if the others' runs do not all
     fit whole, the largest (by the bytes keeping them whole costs) until the rest fit. With
     `figures` False (the per-pixel rule, nothing refined) every test is. Raises DiskError if the
-    plan does not fit even so (checked each round: finer references take room too)."""
+    plan does not fit even so (checked each round: finer references take room too).
+    `budget`: the bytes the cache may still grow by under the profile's disk_budget_gb; runs are
+    kept whole only within it too (a budget too small for the rest prunes every test, not an error:
+    it is a target, the free disk the limit)."""
     tests = need["tests"]
     kept = need["maps"] + sum(k for _, k in tests.values())
     flight = IN_FLIGHT * need.get("run", 0)          # runs whole between their run and metrics tasks
@@ -201,7 +212,8 @@ def fit(need: dict, free: int, figures: bool, folder: Path, already: frozenset =
                         f"{size(free)} is free: free some, or set TAA_STUDY_CACHE to a larger disk")
     if not figures:
         return frozenset(tests)
-    room, whole = free - floor, set()
+    # the budget is the cache's size: the margin left free for everything else is the disk's business
+    room, whole = free - floor if budget is None else min(free - floor, budget - (floor - spare)), set()
     for k, (w, kept) in sorted(tests.items(), key=lambda x: x[1][0] - x[1][1]):   # the cheapest to keep first
         if k not in already and w - kept <= room:
             room -= w - kept
@@ -209,9 +221,28 @@ def fit(need: dict, free: int, figures: bool, folder: Path, already: frozenset =
     pruned = frozenset(tests) - whole - already
     if pruned:
         extra = sum(tests[k][0] - tests[k][1] for k in pruned)
+        where = (f"{free / gb:.1f} GB free" if budget is None or free <= budget else
+                 f"{max(budget, 0) / gb:.1f} GB the disk budget leaves")
         log(f"disk: {len(pruned)} of {len(tests)} tests' runs ({extra / gb:.1f} GB whole) do not fit in the "
-            f"{free / gb:.1f} GB free beside the rest: pruned once judged, and made again if their references are refined")
+            f"{where} beside the rest: pruned once judged, and made again if their references are refined")
     return pruned | already
+
+
+def used_bytes(folder: Path) -> int:
+    """Bytes the files under `folder` take (0 for a folder not made yet): what a disk budget counts."""
+    import os
+    n, stack = 0, [str(folder)]
+    while stack:
+        try:
+            with os.scandir(stack.pop()) as it:
+                for e in it:
+                    if e.is_dir(follow_symlinks=False):
+                        stack.append(e.path)
+                    elif e.is_file(follow_symlinks=False):
+                        n += e.stat(follow_symlinks=False).st_size
+        except (FileNotFoundError, NotADirectoryError):
+            pass
+    return n
 
 
 def free_bytes(folder: Path) -> int:

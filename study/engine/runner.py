@@ -233,9 +233,13 @@ class Study:
         whether a study decided from it before."""
         figures = self.precision.rule == "figures"
         whole = figures and self.profile.runs_while_refining == "whole"    # else every test's runs are pruned once judged
-        free = D.free_bytes(self.cache.root) + S.freeable(self, getattr(self, "_last", None), rnd)   # superseded
+        freed = S.freeable(self, getattr(self, "_last", None), rnd)      # superseded, removed before it renders
+        free = D.free_bytes(self.cache.root) + freed
+        budget = self.profile.disk_budget_gb
+        if budget is not None:
+            budget = int(budget * 2 ** 30) - D.used_bytes(self.cache.root) + freed
         need = D.needs(rnd.plan)
-        pruned = D.fit(need, free, whole, self.cache.root, state.pruned, self.log)
+        pruned = D.fit(need, free, whole, self.cache.root, state.pruned, self.log, budget)
         if figures and pruned != state.pruned:
             return replace(state, pruned=pruned), True          # their metrics prune their runs
         if not figures or state.memo is not None:
