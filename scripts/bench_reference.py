@@ -8,6 +8,10 @@ Prints seconds, mean/max spp, the 99.9th percentile and max display-domain stand
 samples the worst pixel still over the bound would take, predicted by the renderer ("-": older code).
 
     .venv/bin/python scripts/bench_reference.py [--skip-full] [--textured] [--only SCENE@WxH ...]
+        [--bound LSB --held-out --frames N [--reuse]]
+
+`--bound 8 --held-out --frames 2`: frames 0 and 1 at the figures' rule's probe, as a study renders a
+ghosting test's references (`--reuse`: frame 1 keeps frame 0's unchanged pixels); a row a frame.
 """
 from __future__ import annotations
 
@@ -51,7 +55,14 @@ def main() -> None:
     ap.add_argument("--skip-full", action="store_true", help="skip pipe at 1600x900")
     ap.add_argument("--textured", action="store_true", help="the textured example scenes")
     ap.add_argument("--only", nargs="*", help="cases as SCENE@WxH")
+    ap.add_argument("--bound", type=float, default=None, help="per-pixel bound in LSB (default: the cache's)")
+    ap.add_argument("--held-out", action="store_true", help="held-out estimates (the figures' rule)")
+    ap.add_argument("--frames", type=int, default=1, help="frames 0..N-1 of each case")
+    ap.add_argument("--reuse", action="store_true", help="each frame keeps the previous frame's unchanged pixels")
     args = ap.parse_args()
+    kw = {"held_out": args.held_out, "reuse": args.reuse}
+    if args.bound is not None:
+        kw.update(se_bound_lsb=args.bound, target_noise_db=0.0)
     cases = TEXTURED if args.textured else CASES
     if args.only:
         cases = [(c.split("@")[0], *map(int, c.split("@")[1].split("x"))) for c in args.only]
@@ -61,11 +72,11 @@ def main() -> None:
           f"{'p99.9 LSB':>9s} {'max LSB':>8s} {'over':>7s} {'floor':>7s} {'noise dB':>8s} {'needed':>9s}", flush=True)
     with tempfile.TemporaryDirectory() as tmp:
         cache = ReferenceCache(tmp)
-        for name, w, h in cases:
+        for name, w, h, t in ((*c, t) for c in cases for t in range(args.frames)):
             scene = get_scene(name)
-            name = Path(name).stem
+            name = Path(name).stem + (f" frame {t}" if args.frames > 1 else "")
             t0 = time.perf_counter()
-            ref, _ = cache.get(scene, 0, w, h)
+            ref, _ = cache.get(scene, t, w, h, **kw)
             wall = time.perf_counter() - t0
             spp_map = getattr(ref, "spp_map", None)
             spp = np.full((h, w), ref.spp) if spp_map is None else spp_map
@@ -74,7 +85,7 @@ def main() -> None:
             if dse is None:
                 dse, tag = delta_display_se(ref.image, ref.stderr), " (delta)"
             lsb = dse.max(axis=-1) * 255.0
-            over = int(np.sum(lsb > BOUND_LSB * (1 + 1e-5)))    # float32 storage slack
+            over = int(np.sum(lsb > (args.bound or BOUND_LSB) * (1 + 1e-5)))    # float32 storage slack
             floor = getattr(ref, "floor_bound", 0)
             print(f"{name + f' {w}x{h}':32s} {wall:7.2f} {ref.seconds:7.2f} {spp.mean():9.1f} {int(spp.max()):8d} "
                   f"{np.percentile(lsb, 99.9):9.3f} {lsb.max():8.3f} {over:7d} {floor:7d} {ref.noise_psnr_db:8.2f} "
