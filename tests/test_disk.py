@@ -251,3 +251,10 @@ def test_run_stops_first_with_status_2_and_one_line_when_the_disk_cannot_hold_th
     assert len(lines) == 1 and "Traceback" not in r.output, r.output
     assert f"in the cache folder {tmp_path / 'cache'}" in lines[0] and "and 5.0 MB is free" in lines[0], lines[0]
     assert not list(tmp_path.rglob("*.exr"))
+
+
+def test_budget_left_is_the_budget_less_what_the_cache_holds_plus_what_is_about_to_go(tmp_path):
+    (tmp_path / "x.bin").write_bytes(b"0" * 4096)
+    assert D.budget_left(None, tmp_path) is None
+    assert D.budget_left(1.0, tmp_path) == GB - 4096
+    assert D.budget_left(1.0, tmp_path, freed=4096) == GB

@@ -228,6 +228,12 @@ def fit(need: dict, free: int, figures: bool, folder: Path, already: frozenset =
     return pruned | already
 
 
+def budget_left(budget_gb: float | None, folder: Path, freed: int = 0) -> int | None:
+    """The bytes the cache folder may still grow by under a profile's disk_budget_gb (None: no
+    budget): the budget less what the folder holds, plus what is about to be removed (`freed`)."""
+    return None if budget_gb is None else int(budget_gb * 2 ** 30) - used_bytes(folder) + freed
+
+
 def used_bytes(folder: Path) -> int:
     """Bytes the files under `folder` take (0 for a folder not made yet): what a disk budget counts."""
     import os

@@ -234,12 +234,8 @@ class Study:
         figures = self.precision.rule == "figures"
         whole = figures and self.profile.runs_while_refining == "whole"    # else every test's runs are pruned once judged
         freed = S.freeable(self, getattr(self, "_last", None), rnd)      # superseded, removed before it renders
-        free = D.free_bytes(self.cache.root) + freed
-        budget = self.profile.disk_budget_gb
-        if budget is not None:
-            budget = int(budget * 2 ** 30) - D.used_bytes(self.cache.root) + freed
-        need = D.needs(rnd.plan)
-        pruned = D.fit(need, free, whole, self.cache.root, state.pruned, self.log, budget)
+        pruned = D.fit(D.needs(rnd.plan), D.free_bytes(self.cache.root) + freed, whole, self.cache.root, state.pruned,
+                       self.log, D.budget_left(self.profile.disk_budget_gb, self.cache.root, freed))
         if figures and pruned != state.pruned:
             return replace(state, pruned=pruned), True          # their metrics prune their runs
         if not figures or state.memo is not None:
