@@ -252,6 +252,10 @@ def test_a_full_disk_while_writing_the_report_exits_2_and_keeps_the_folder_whole
     import study.reporting.report as R
     root, study = cached
     out = tmp_path / "out"
+    # every task cached under this process's keys first: the fixture's study ran in a subprocess,
+    # and run alone this test found its run and metrics still to compute, so the full disk met a
+    # task's record, not the report
+    assert _run_in_process(root, study, tmp_path / "warm", monkeypatch).exit_code == 0
     real = PF.write_bytes_atomic
     calls = []
 
