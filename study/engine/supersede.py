@@ -25,6 +25,7 @@ import shutil
 import uuid
 from pathlib import Path
 
+from study.engine.disk import used_bytes
 from study.engine.rounds import FigureKey, InstantKey, Over, TestKey
 
 
@@ -89,7 +90,7 @@ def remove(paths, root: Path) -> tuple[int, int]:
             continue
         n += 1
         if gone.is_dir():
-            freed += sum(f.stat().st_size for f in gone.rglob("*") if f.is_file())
+            freed += used_bytes(gone)
             shutil.rmtree(gone, ignore_errors=True)
         else:
             freed += gone.stat().st_size
@@ -122,7 +123,7 @@ def freeable(study, before, now) -> int:
     n = 0
     for p in superseded(study, before, now):
         try:
-            n += sum(f.stat().st_size for f in p.rglob("*") if f.is_file()) if p.is_dir() else p.stat().st_size
+            n += used_bytes(p) if p.is_dir() else p.stat().st_size
         except FileNotFoundError:
             pass
     return n
