@@ -13,6 +13,7 @@ A key is `task_key(kind, data, inputs, code)`:
 """
 from __future__ import annotations
 
+import ast
 import contextlib
 import hashlib
 import sys
@@ -49,8 +50,37 @@ def _module_of(obj):
 
 
 @lru_cache(maxsize=None)
+def _static_imports(path: str, mtime_ns: int, package: str) -> tuple[frozenset[str], frozenset[str]]:
+    """What a source file's top-level import statements name, as absolute module names: the
+    submodules an `import a.b.c` loads without binding them (a.b, a.b.c), and every name any import
+    statement gives (`from .x import y`: package.x and package.x.y, whether y is a module or not)."""
+    tree = ast.parse(Path(path).read_bytes(), filename=path)
+    dotted: set[str] = set()
+    named: set[str] = set()
+    for node in tree.body:
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                parts = alias.name.split(".")
+                names = [".".join(parts[:i]) for i in range(1, len(parts) + 1)]
+                named.update(names)
+                dotted.update(names[1:] if alias.asname is None else ())
+        elif isinstance(node, ast.ImportFrom):
+            base = package.split(".")[:len(package.split(".")) - node.level + 1] if node.level else []
+            mod = ".".join(base + ([node.module] if node.module else []))
+            named.add(mod)
+            named.update(f"{mod}.{alias.name}" for alias in node.names)
+    return frozenset(dotted), frozenset(named)
+
+
+@lru_cache(maxsize=None)
 def _closure(root: str) -> tuple[str, ...]:
-    """Names of the own modules `root` uses, itself included (what its globals refer to)."""
+    """Names of the own modules `root` uses, itself included: what its globals refer to, and the
+    submodules its `import a.b` statements load (such a statement binds only `a`).
+
+    Not a package's submodules merely because they are loaded (importing `a.b` anywhere binds `b`
+    on package `a`): which are loaded depends on what else the process imported first, and a key
+    must not (a command that had loaded one more submodule computed other keys than the study
+    that cached the tasks). A package's submodule counts when its own source imports it."""
     seen: set[str] = set()
     todo = [root]
     while todo:
@@ -59,13 +89,17 @@ def _closure(root: str) -> tuple[str, ...]:
         if name in seen or mod is None or not _own_module(mod):
             continue
         seen.add(name)
-        if name.endswith(".__init__") or hasattr(mod, "__path__"):
-            # a package's submodules are part of it once loaded
-            todo += [m for m in list(sys.modules) if m.startswith(name + ".")]
+        path = _source_of(mod.__file__)
+        package = name if hasattr(mod, "__path__") else name.rpartition(".")[0]
+        dotted, named = _static_imports(str(path), path.stat().st_mtime_ns, package)
+        todo += dotted
         for v in list(vars(mod).values()):
             m = v if isinstance(v, types.ModuleType) else sys.modules.get(getattr(v, "__module__", None) or "")
-            if m is not None and m.__name__ not in seen:
-                todo.append(m.__name__)
+            if m is None or m.__name__ in seen:
+                continue
+            if m is v and m.__name__.startswith(name + ".") and m.__name__ not in named:
+                continue        # bound on this package by whoever imported it
+            todo.append(m.__name__)
     return tuple(sorted(seen))
 
 

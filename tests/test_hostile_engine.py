@@ -5,6 +5,7 @@ correct study, and leaves the cache and the output folder consistent."""
 import os
 import sys
 import threading
+from pathlib import Path
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -249,13 +250,10 @@ def test_a_full_disk_while_writing_the_report_exits_2_and_keeps_the_folder_whole
     import errno
 
     import provenance.files as PF
+    import study.engine.store  # noqa: F401  (imported under the patch, it would keep the full disk's writer)
     import study.reporting.report as R
     root, study = cached
     out = tmp_path / "out"
-    # every task cached under this process's keys first: the fixture's study ran in a subprocess,
-    # and run alone this test found its run and metrics still to compute, so the full disk met a
-    # task's record, not the report
-    assert _run_in_process(root, study, tmp_path / "warm", monkeypatch).exit_code == 0
     real = PF.write_bytes_atomic
     calls = []
 
@@ -303,6 +301,33 @@ def test_a_second_study_on_a_folder_another_is_writing_exits_2_naming_both(tmp_p
     assert not out.exists() and not (tmp_path / "cache").exists()      # refused before any work
     assert lock.read_text().split()[1] == str(os.getppid())            # the other's lock stays
 
+
+
+def test_a_full_cache_disk_mid_study_exits_2_and_the_same_command_goes_on(tmp_path, monkeypatch):
+    """ENOSPC writing a task's record in the cache ended in an OSError traceback, exit 1."""
+    import errno
+
+    import study.engine.store as S
+    study = _study(tmp_path, ["A=noaa"])
+    out = tmp_path / "out"
+    real = S.write_text_atomic
+
+    def full(path, text):
+        if Path(path).name == "done.json" and "/runs/" in str(path):    # the run's record, after its reference
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+        return real(path, text)
+    with monkeypatch.context() as mp:
+        mp.setattr(S, "write_text_atomic", full)
+        r = _run_in_process(tmp_path, study, out, monkeypatch)
+    assert r.exit_code == 2, (r.output, r.exc_info)
+    assert "Traceback" not in r.output
+    (err,) = [line for line in r.output.splitlines() if line.startswith("error:")]
+    assert f"the study cache {tmp_path / 'cache'}: cannot write (done.json: No space left on device: " in err, err
+    assert "MB free on its disk); the tasks finished so far stay cached" in err, err
+    assert not out.exists() and _leftovers(out) == []
+    r = _run_in_process(tmp_path, study, out, monkeypatch)              # room again: it goes on
+    assert r.exit_code == 0, r.output
+    assert "runs computed 1, cached 0" in r.output and "references rendered 0" in r.output, r.output
 
 # -- figures and the disk -------------------------------------------------------------------------
 def test_figures_json_is_strict_and_keeps_an_infinite_figure(tmp_path):

@@ -146,6 +146,46 @@ def test_each_study_module_rekeys_only_what_it_makes(tmp_path):
     assert not wrong, wrong      # file -> (kinds it re-keys, kinds it should)
 
 
+def test_a_code_key_does_not_depend_on_which_submodules_the_process_loaded(tmp_path, monkeypatch):
+    """Importing a.b anywhere binds b on package a. The closure took every loaded submodule of a
+    package it used, so a process that had loaded one more (a test, another command) computed other
+    keys than the study that cached the tasks, and made them again. Its `import a.b.c` statements
+    still count: they load a.b.c without binding it."""
+    import importlib
+    import os
+
+    import provenance
+    pkg = tmp_path / "keypkg"
+    (pkg / "deep").mkdir(parents=True)
+    (pkg / "__init__.py").write_text("from .core import f\n")
+    (pkg / "core.py").write_text("def f():\n    return 1\n")
+    (pkg / "sibling.py").write_text("X = 2\n")
+    (pkg / "deep" / "__init__.py").write_text("")
+    (pkg / "deep" / "leaf.py").write_text("V = 3\n")
+    (tmp_path / "keyuser.py").write_text("import keypkg\nimport keypkg.deep.leaf\n\n\n"
+                                         "def g():\n    return keypkg.f() + keypkg.deep.leaf.V\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    try:
+        keyuser = importlib.import_module("keyuser")
+
+        def files():
+            return sorted(p.relative_to(tmp_path).as_posix() for p in provenance.closure_files(keyuser))
+        first, token = files(), provenance.code_token(keyuser)
+        assert first == ["keypkg/__init__.py", "keypkg/core.py", "keypkg/deep/__init__.py",
+                         "keypkg/deep/leaf.py", "keyuser.py"]
+        importlib.import_module("keypkg.sibling")           # another part of the process loads it
+        provenance._closure.cache_clear()
+        assert files() == first and provenance.code_token(keyuser) == token
+        leaf = pkg / "deep" / "leaf.py"
+        leaf.write_text("V = 4\n")
+        st = os.stat(leaf)
+        os.utime(leaf, ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
+        assert provenance.code_token(keyuser) != token      # reached through `import keypkg.deep.leaf` alone
+    finally:
+        provenance._closure.cache_clear()
+        for name in [m for m in sys.modules if m == "keyuser" or m.split(".")[0] == "keypkg"]:
+            del sys.modules[name]
+
 def test_a_normalized_value_keys_exactly_as_the_value_itself():
     """The planner keys a test's runs by its schedule normalised once: every key must be the one the
     plain schedule gives (a changed key would re-make every cached run), and a different schedule

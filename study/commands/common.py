@@ -335,6 +335,7 @@ def run_study(profile, names, configs, out_dir, no_agreement, executor, sweep=Tr
     from study.config.profile import SPARSE_SWEEP, sharpen_sweep_configs
     from study.engine.runner import Study
     from study.engine.stopping import StudyStopped
+    from study.commands.out_folder import CANNOT_WRITE, write_failure
     from study.engine.tasks import TaskError
     from study.reporting.report import write_study
 
@@ -354,6 +355,11 @@ def run_study(profile, names, configs, out_dir, no_agreement, executor, sweep=Tr
         _fail(str(exc))
     except StudyStopped as exc:
         _stopped(exc)
+    except OSError as exc:          # a cache file outside any task's record (a full disk, say)
+        if exc.errno not in CANNOT_WRITE:
+            raise
+        _fail(f"the study cache {study.cache.root}: cannot write ({write_failure(exc, study.cache.root)}); "
+              "the tasks finished so far stay cached: make room and run the same command again to go on")
     from study.config.profile import thesis_roles
     summary = {**res.stats, "profile": study.profile.name, "scenes": names,
                "techniques": [c.label for c in configs], "roles": thesis_roles(configs),

@@ -26,6 +26,20 @@ from pathlib import Path
 INCOMPLETE = ".taa-study-incomplete"     # in a folder whose first report is being moved into place
 
 
+CANNOT_WRITE = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM})
+
+
+def write_failure(exc: OSError, folder) -> str:
+    """'file: why' for a file that could not be written under `folder`, with the disk's free space
+    when it is full."""
+    from study.engine.disk import free_bytes
+    what = Path(exc.filename).name if getattr(exc, "filename", None) else "a file"
+    why = exc.strerror or str(exc)
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        why = f"{why}: {free_bytes(Path(folder)) / 2 ** 20:.1f} MB free on its disk"
+    return f"{what}: {why}"
+
+
 class OutFolderError(ValueError):
     """The output folder cannot be used or written; the message names it and why."""
 
@@ -125,14 +139,9 @@ class OutFolder:
         self.written = True
 
     def _failed(self, exc: OSError, first: bool) -> str:
-        what = Path(exc.filename).name if getattr(exc, "filename", None) else "a file"
-        why = exc.strerror or str(exc)
-        if exc.errno in (errno.ENOSPC, errno.EDQUOT):
-            from study.engine.disk import free_bytes
-            why = f"{why}: {free_bytes(self.path.absolute().parent) / 2 ** 20:.1f} MB free on its disk"
         left = ("nothing was written" if first else
                 "its previous report's manifest still stands; the next study rewrites what it lacks")
-        return f"--out {self.path}: cannot write the report ({what}: {why}); {left}"
+        return f"--out {self.path}: cannot write the report ({write_failure(exc, self.path.absolute().parent)}); {left}"
 
     def _move_into_place(self) -> None:
         """The staged report becomes the folder: a rename where it does not exist yet; into an

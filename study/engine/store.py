@@ -280,7 +280,10 @@ class Store:
         if root not in _CHANGED or not self.root.is_dir():
             return
         memo = {p: v for p, v in self._hashes().items() if (self.root / p).exists()}
-        write_text_atomic(self.root / "file-hashes.json", json.dumps(memo))
+        try:
+            write_text_atomic(self.root / "file-hashes.json", json.dumps(memo))
+        except OSError:     # a memo (a full disk, say): the next study hashes those files again
+            return
         _CHANGED.discard(root)
 
     def read_image(self, folder: Path, name: str, record: dict) -> dict:
