@@ -25,3 +25,6 @@ echo "setup: installing Python packages (pinned in pyproject.toml)"
 .venv/bin/uv pip install -q --python .venv/bin/python -e '.[test]'
 # Fails here, with an instruction, if no usable libLLVM or EGL driver was found.
 .venv/bin/python -c "import backend; print('setup: Dr.Jit', backend.dr.__version__, 'variant', backend.VARIANT)"
+# uv writes no bytecode: what the study and the suite import is compiled here, once, instead of in
+# each new process (scripts/compile_imports.py says why not all of site-packages).
+PYTHONDONTWRITEBYTECODE= .venv/bin/python scripts/compile_imports.py

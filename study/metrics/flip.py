@@ -263,7 +263,7 @@ def _aces(planes, m: float):
     """Exposure 2^e (m) and FLIP's ACES fit, clamped to [0, 1]."""
     out = []
     for p in planes:
-        v = p * m
+        v = p * dr.opaque(type(p), m)     # a literal would compile a kernel per exposure (per reference)
         num = (v * v) * float(ACES[0]) + v * float(ACES[1]) + float(ACES[2])
         den = (v * v) * float(ACES[3]) + v * float(ACES[4]) + float(ACES[5])
         out.append(dr.clip(num / den, 0.0, 1.0))
