@@ -332,10 +332,10 @@ def run_study(profile, names, configs, out_dir, no_agreement, executor, sweep=Tr
     writing nothing. Returns the folder."""
     import time as _time
 
+    from study.commands.out_folder import CANNOT_WRITE, write_failure
     from study.config.profile import SPARSE_SWEEP, sharpen_sweep_configs
     from study.engine.runner import Study
     from study.engine.stopping import StudyStopped
-    from study.commands.out_folder import CANNOT_WRITE, write_failure
     from study.engine.tasks import TaskError
     from study.reporting.report import write_study
 
