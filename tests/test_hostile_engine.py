@@ -5,8 +5,8 @@ correct study, and leaves the cache and the output folder consistent."""
 import os
 import sys
 import threading
-from pathlib import Path
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -302,7 +302,6 @@ def test_a_second_study_on_a_folder_another_is_writing_exits_2_naming_both(tmp_p
     assert lock.read_text().split()[1] == str(os.getppid())            # the other's lock stays
 
 
-
 def test_a_full_cache_disk_mid_study_exits_2_and_the_same_command_goes_on(tmp_path, monkeypatch):
     """ENOSPC writing a task's record in the cache ended in an OSError traceback, exit 1."""
     import errno
@@ -328,6 +327,7 @@ def test_a_full_cache_disk_mid_study_exits_2_and_the_same_command_goes_on(tmp_pa
     r = _run_in_process(tmp_path, study, out, monkeypatch)              # room again: it goes on
     assert r.exit_code == 0, r.output
     assert "runs computed 1, cached 0" in r.output and "references rendered 0" in r.output, r.output
+
 
 # -- figures and the disk -------------------------------------------------------------------------
 def test_figures_json_is_strict_and_keeps_an_infinite_figure(tmp_path):
